@@ -1,0 +1,37 @@
+# hilrig developer commands. Every target creates .venv and installs what it needs.
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+OUT ?= build
+
+.PHONY: demo test lint typecheck bench lock clean
+
+$(STAMP): pyproject.toml constraints.txt
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -c constraints.txt -e '.[dev]'
+	touch $(STAMP)
+
+demo: $(STAMP)  ## the main job: the paper's simulation experiments (table, CSV, Markdown, plots)
+	$(BIN)/hilrig paper --out $(OUT)/paper
+
+test: lint typecheck  ## lint, type-check and run every test
+	$(BIN)/python -m pytest
+
+lint: $(STAMP)
+	$(BIN)/ruff check hilrig tests benchmarks
+	$(BIN)/ruff format --check hilrig tests benchmarks
+
+typecheck: $(STAMP)
+	$(BIN)/mypy
+
+bench: $(STAMP)  ## benchmarks; results in benchmarks/results/latest.json
+	$(BIN)/python -m benchmarks
+
+lock: $(STAMP)  ## re-pin constraints.txt from the current environment
+	{ echo "# Pinned versions used by make (pip install -c constraints.txt). Regenerate with: make lock"; \
+	  $(BIN)/python -m pip freeze --exclude-editable; } > constraints.txt
+
+clean:
+	rm -rf $(VENV) $(OUT) .pytest_cache .mypy_cache .ruff_cache
