@@ -54,11 +54,11 @@ def resolve_params(params: ParamsLike) -> AdmittanceParams:
 
 
 def _series_terms(theta: float) -> tuple[int, int]:
-    """(Taylor terms, doublings) so that phi_1's series at ||A*h|| <= 0.5 is good to 1e-17."""
+    """(Taylor terms, doublings) so that phi_1's series at ||A*h|| <= 0.5 is good to 1e-16."""
     nsq = max(0, math.ceil(math.log2(theta / 0.5))) if theta > 0.5 else 0
     theta /= 2.0**nsq
     terms = 1
-    while theta**terms / math.factorial(terms + 1) > 1e-17 and terms < 30:
+    while theta**terms / math.factorial(terms + 1) > 1e-16 and terms < 30:
         terms += 1
     return terms, nsq
 
@@ -152,7 +152,7 @@ class AdmittanceController:
         self._velocity: NDArray[np.float64] = self._out[K.OUT_VELOCITY, 0]
         self._damping: NDArray[np.float64] = self._out[K.OUT_DAMPING, 0]
         self._stiffness: NDArray[np.float64] = self._out[K.OUT_STIFFNESS, 0]
-        self._zeta: NDArray[np.float64] = self._S[K.ZETA]
+        self._m = packed.P[K.M]
         self._contact_row: NDArray[np.int8] = self._contact[0]
 
     @property
@@ -218,8 +218,9 @@ class AdmittanceController:
 
     @property
     def zeta(self) -> NDArray[np.float64]:
-        """Damping ratio b/(2*sqrt(m*k)) of the last step."""
-        return self._zeta
+        """Damping ratio b/(2*sqrt(m*k)) of the last step (allocates: not for the tick)."""
+        zeta: NDArray[np.float64] = self._damping / (2.0 * np.sqrt(self._m * self._stiffness))
+        return zeta
 
     @property
     def contact(self) -> NDArray[np.int8]:

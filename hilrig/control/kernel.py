@@ -22,8 +22,8 @@ NP = 13
 LAW, CHI, BETA_READING, INTEGRATOR, SM, GUARD, DEBOUNCE, RELEASE, HOLD = range(9)
 NC = 9
 # Rows of the float state S (NS, A): per axis, then per-group scratch (indexed by group).
-E, V, B, K, P00, P01, P10, P11, G0, G1, ZETA, GABOVE, GSUMSQ, GSETTLED = range(14)
-NS = 14
+E, V, B, K, P00, P01, P10, P11, G0, G1, GABOVE, GSUMSQ, GSETTLED = range(13)
+NS = 13
 # Rows of the int group state G (NG, A), indexed by group.
 STATE, CNT_ABOVE, CNT_BELOW, TICKS = range(4)
 NG = 4
@@ -37,16 +37,16 @@ CHI_SQUARE, CHI_ABS, CHI_GROUP_SQUARE = 0, 1, 2
 BETA_CAP, BETA_MAX = 0, 1
 ZOH, EULER = 0, 1
 FREE, CONTACT, HOLDING, RECOVERING = 0, 1, 2, 3
+TANH_IS_ONE = 19.1
 
 
 @njit(cache=True, inline="always")
 def discretise(
     P: NDArray[np.float64], S: NDArray[np.float64], i: int, b: float, k: float, zoh: bool
 ) -> None:
-    """Write Phi, Gamma and zeta of axis i with (b, k) frozen over one period into S."""
+    """Write Phi and Gamma of axis i with (b, k) frozen over one period into S."""
     m = P[M, i]
     dt = P[DT, i]
-    S[ZETA, i] = b / (2.0 * math.sqrt(m * k))
     if not zoh:
         r = b * dt / m
         S[P00, i] = 1.0 - k * dt * dt / m
@@ -56,33 +56,29 @@ def discretise(
         S[G0, i] = dt * dt / m
         S[G1, i] = dt / m
         return
-    # exp(A*dt) and Psi = int_0^dt exp(A*s) ds by a Taylor series of phi_1(X) = sum X^j/(j+1)!
-    # (Horner form) at h = dt/2^nsq, then nsq doublings. Gamma = Psi[:, 1]/m keeps full relative
-    # precision where 1 - Phi would cancel. Terms and scaling are chosen per axis for 1e-17.
+    # exp(A*dt) and Psi = int_0^dt exp(A*s) ds from the series phi_1(X) = sum X^j/(j+1)! at
+    # X = A*h, h = dt/2^nsq. By Cayley-Hamilton X^2 = -beta*X - kappa*I (beta = b*h/m,
+    # kappa = k*h^2/m), so every series in X is u*I + w*X and Horner's step Q <- I + c*X*Q is
+    # two scalar updates. Gamma = Psi[:, 1]/m keeps full relative precision where 1 - Phi would
+    # cancel. Terms and scaling are chosen per axis (controller.py) for 1e-16 truncation.
     nsq = int(P[NSQ, i])
     h = dt / (1 << nsq)
-    x10 = -k / m * h
-    x11 = -b / m * h
-    q00 = 1.0
-    q01 = 0.0
-    q10 = 0.0
-    q11 = 1.0
+    beta = b * h / m
+    kappa = k * h * h / m
+    u = 1.0
+    w = 0.0
     for j in range(int(P[NTERMS, i]), 0, -1):
         c = 1.0 / (j + 1)
-        r00 = h * q10
-        r01 = h * q11
-        r10 = x10 * q00 + x11 * q10
-        r11 = x10 * q01 + x11 * q11
-        q00 = 1.0 + c * r00
-        q01 = c * r01
-        q10 = c * r10
-        q11 = 1.0 + c * r11
-    f00 = 1.0 + h * q10
-    f01 = h * q11
-    f10 = x10 * q00 + x11 * q10
-    f11 = 1.0 + x10 * q01 + x11 * q11
-    s01 = h * q01
-    s11 = h * q11
+        u, w = 1.0 - c * kappa * w, c * (u - beta * w)
+    # Phi = I + X*Q = (1 - kappa*w)*I + (u - beta*w)*X;  Psi = h*Q.
+    a = 1.0 - kappa * w
+    g = u - beta * w
+    f00 = a
+    f01 = g * h
+    f10 = -g * kappa / h
+    f11 = a - g * beta
+    s01 = w * h * h
+    s11 = g * h
     for _ in range(nsq):
         n01 = (1.0 + f00) * s01 + f01 * s11
         n11 = f10 * s01 + (1.0 + f11) * s11
@@ -120,11 +116,13 @@ def law_gains(
     if law == FIXED:
         return b_d, k_d
     if chi_reading == CHI_SQUARE:
-        chi = math.tanh(f * f)
+        x = f * f
     elif chi_reading == CHI_ABS:
-        chi = math.tanh(abs(f))
+        x = abs(f)
     else:
-        chi = math.tanh(group_sumsq)
+        x = group_sumsq
+    # tanh(x) rounds to exactly 1.0 in float64 from x = 19.0616 on; skip libm's 16 ns there.
+    chi = 1.0 if x >= TANH_IS_ONE else math.tanh(x)
     k = (1.0 - P[A2, i] * chi) * k_d
     if law == VARIABLE_STIFFNESS:
         return b_d, k

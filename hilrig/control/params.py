@@ -234,7 +234,7 @@ def validate(law: Law, params: AdmittanceParams, axes: int, dt: float) -> AxisBo
         bad = ~np.isfinite(values) & ~(np.isnan(values) & (getattr(params, name) is None))
         if bad.any():
             i = int(np.argmax(bad))
-            raise ParameterError(f"{name} = {values[i]!r} on axis {i} must be finite")
+            raise ParameterError(f"{name} = {float(values[i])} on axis {i} must be finite")
 
     def require(ok: NDArray[np.bool_], what: str, values: NDArray[np.float64], bound: str) -> None:
         if not ok.all():

@@ -1,0 +1,1 @@
+"""``make bench``: performance measured as ratios against reference runs in the same process."""

@@ -1,0 +1,55 @@
+"""Run every ``benchmarks/bench_*.py`` (each exposes ``run() -> list[Result]``).
+
+Writes ``benchmarks/results/latest.json`` and prints a table. ``python -m benchmarks NAME ...``
+runs only the named suites (e.g. ``control``).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import platform
+import sys
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+from benchmarks.harness import Result
+
+HERE = Path(__file__).parent
+
+
+def main(argv: list[str]) -> int:
+    names = argv or sorted(p.stem.removeprefix("bench_") for p in HERE.glob("bench_*.py"))
+    console = Console()
+    results: list[Result] = []
+    for name in names:
+        console.print(f"[bold]benchmark suite {name}[/]")
+        started = time.perf_counter()
+        module = importlib.import_module(f"benchmarks.bench_{name}")
+        results.extend(module.run())
+        console.print(f"  done in {time.perf_counter() - started:.1f} s")
+    table = Table(title="hilrig benchmarks")
+    for column in ("suite", "name", "value", "unit", "target", "ok"):
+        table.add_column(column)
+    for r in results:
+        ok = "" if r.passed is None else ("yes" if r.passed else "NO")
+        table.add_row(r.suite, r.name, f"{r.value:.4g}", r.unit, r.target, ok)
+    console.print(table)
+    report = {
+        "when_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "machine": {"python": platform.python_version(), "cpu": platform.processor(), "cores": 2},
+        "suites": names,
+        "results": [r.as_dict() for r in results],
+    }
+    out = HERE / "results" / "latest.json"
+    out.write_text(json.dumps(report, indent=2) + "\n")
+    console.print(f"wrote {out}")
+    return 0 if all(r.passed is not False for r in results) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

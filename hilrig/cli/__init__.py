@@ -1,0 +1,23 @@
+"""``hilrig`` command line: thin commands that parse options and call library functions.
+
+Expected failures (HilrigError) print one line to stderr and exit 2; nothing else is caught.
+"""
+
+import sys
+
+from rich.console import Console
+
+from hilrig.cli import paper  # noqa: F401  (registers its command)
+from hilrig.cli.app import app
+from hilrig.errors import HilrigError
+
+__all__ = ["app", "main"]
+
+
+def main() -> None:
+    """Entry point of the ``hilrig`` script."""
+    try:
+        app()
+    except HilrigError as err:
+        Console(stderr=True).print(f"[bold red]error:[/] {err}", highlight=False)
+        sys.exit(2)

@@ -1,0 +1,136 @@
+"""Invalid or unstable parameters are refused before any motion, with exact messages."""
+
+import numpy as np
+import pytest
+
+from hilrig.control import (
+    AdmittanceParams,
+    NonFiniteForceError,
+    ParameterError,
+    combine,
+    make,
+    preset,
+    resolve_params,
+    simulate,
+    stability_report,
+)
+
+EE = "paper-end-effector"
+
+
+@pytest.mark.parametrize(
+    ("law", "overrides", "message"),
+    [
+        ("fixed", {"m": 0.0}, "m = 0 on axis 0 must be > 0 (virtual inertia)"),
+        (
+            "fixed",
+            {"b_d": -1.0},
+            "b_d = -1 on axis 0 must be > 0 (a fixed-parameter axis is stable iff m, b, k > 0)",
+        ),
+        (
+            "fixed",
+            {"k_d": (300.0, 0.0)},
+            "k_d = 0 on axis 1 must be > 0 (a fixed-parameter axis is stable iff m, b, k > 0)",
+        ),
+        (
+            "variable-stiffness",
+            {"a2": 1.0},
+            "a2 = 1 on axis 0 must be in [0, 1) so that k_min = (1 - a2)*k_d > 0",
+        ),
+        (
+            "adaptive",
+            {"beta": 150.0},
+            "beta = 150 on axis 0 must be < b_d so that the smallest damping b_d - beta stays > 0",
+        ),
+        ("adaptive", {"a1": -2.0}, "a1 = -2 on axis 0 must be >= 0"),
+        ("fixed", {"m": float("nan")}, "m = nan on axis 0 must be finite"),
+        (
+            "adaptive",
+            {"rate_guard": True, "gamma": 4.0},
+            "gamma = 4 on axis 0 must be < 2*b_min*k_min/(m*k_max) (Theorem 1), here 3.6 1/s",
+        ),
+        (
+            "fixed",
+            {"integrator": "euler", "m": 0.01},
+            "k_max*dt^2/m + 2*b_max*dt/m = 60.12 on axis 0 must be < 4 for semi-implicit Euler "
+            "to be stable (use a smaller dt or integrator 'zoh')",
+        ),
+    ],
+)
+def test_unstable_parameters_are_refused(law: str, overrides: dict, message: str) -> None:
+    axes = 2 if isinstance(overrides.get("k_d"), tuple) else 1
+    with pytest.raises(ParameterError) as err:
+        make(law, {"preset": EE, **overrides}, axes=axes, dt=0.002)
+    assert str(err.value) == message
+
+
+def test_a2_is_not_checked_for_the_fixed_law() -> None:
+    make("fixed", {"preset": EE, "a2": 5.0}, axes=1, dt=0.002)
+
+
+def test_unknown_names_are_refused() -> None:
+    with pytest.raises(ParameterError, match=r"^unknown parameter 'k'; known: m, b_d, k_d"):
+        resolve_params({"preset": EE, "k": 1.0})
+    with pytest.raises(ParameterError, match=r"^unknown preset 'paper'; known: adaptive, "):
+        make("fixed", "paper", axes=1)
+    with pytest.raises(ParameterError, match=r"^law 'admittance' is not one of: fixed, "):
+        make("admittance", EE, axes=1)
+    with pytest.raises(ParameterError, match=r"^chi = 'cube' is not one of: square, abs, "):
+        resolve_params({"preset": EE, "chi": "cube"})
+
+
+def test_dict_without_preset_needs_the_physical_parameters() -> None:
+    with pytest.raises(ParameterError, match=r"^params need b_d, k_d \(or a 'preset'"):
+        resolve_params({"m": 1.0})
+    assert resolve_params({"m": 1.0, "b_d": 2.0, "k_d": 3.0}).a1 == 0.0
+
+
+def test_axes_come_from_per_axis_parameters_or_must_be_given() -> None:
+    assert make("fixed", AdmittanceParams(m=(1.0, 2.0), b_d=1.0, k_d=1.0)).axes == 2
+    with pytest.raises(ParameterError, match=r"^axes is required"):
+        make("fixed", EE)
+    with pytest.raises(ParameterError, match=r"^params are given for 2 axes but the input has 3"):
+        simulate("fixed", np.zeros((5, 3)), 0.001, AdmittanceParams(m=(1.0, 2.0), b_d=1, k_d=1))
+
+
+def test_combine_stacks_groups_and_rejects_mixed_options() -> None:
+    both = combine((preset("adaptive"), 3), (preset("adaptive-joint"), 6))
+    assert both.groups == (0, 0, 0, 1, 1, 1, 1, 1, 1)
+    assert both.m == (20.0,) * 3 + (30.0,) * 6
+    with pytest.raises(ParameterError, match=r"^cannot combine params with different state_mach"):
+        combine((preset("adaptive"), 3), (preset("paper-joint"), 6))
+
+
+def test_dt_must_be_positive() -> None:
+    with pytest.raises(ParameterError, match=r"^dt = 0.0 s must be finite and > 0$"):
+        make("fixed", EE, axes=1, dt=0.0)
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), -float("inf")])
+def test_non_finite_force_is_refused_and_never_integrated(bad: float) -> None:
+    force = np.zeros((10, 3))
+    force[7, 2] = bad
+    with pytest.raises(NonFiniteForceError) as err:
+        simulate("adaptive", force, 0.002, EE)
+    assert str(err.value) == (
+        f"force[7, 2] is {bad}: non-finite force is refused and nothing from that tick on "
+        "was integrated"
+    )
+    controller = make("adaptive", EE, axes=3, dt=0.002)
+    controller.step([1.0, 2.0, 3.0])
+    before = (controller.velocity.copy(), controller.stiffness.copy())
+    with pytest.raises(NonFiniteForceError, match=r"^force\[1, 0\] is nan"):
+        controller.step([float("nan"), 0.0, 0.0])
+    assert np.array_equal(controller.velocity, before[0])
+    assert np.array_equal(controller.stiffness, before[1])
+
+
+def test_stability_report_of_the_paper_end_effector() -> None:
+    report = stability_report("adaptive", EE, axes=1, dt=0.002)
+    assert report.b_min[0] == 120.0
+    assert report.k_min[0] == pytest.approx(90.0)
+    assert report.gamma_bound[0] == pytest.approx(2 * 120 * 90 / (20 * 300))
+    # the paper's own collision parameters are overdamped: zeta > 1 is stable
+    assert report.zeta_max[0] == pytest.approx(150 / (2 * np.sqrt(20 * 90)))
+    assert report.zeta_max[0] > 1
+    assert report.omega_n_max[0] == pytest.approx(np.sqrt(15.0))
