@@ -306,11 +306,9 @@ def simulate(
         if packed.axes != trace.shape[1]:
             raise ParameterError(f"controller has {packed.axes} axes, force has {trace.shape[1]}")
     else:
-        if dt is None:
-            raise ParameterError("dt is required with a law name")
-        packed = Packed.build(
-            law, "paper-end-effector" if params is None else params, trace.shape[1], dt
-        )
+        if dt is None or params is None:
+            raise ParameterError("dt and params are required with a law name")
+        packed = Packed.build(law, params, trace.shape[1], dt)
     _refuse_nonfinite(trace)
     T, A = trace.shape
     out = np.empty((K.NO, T, A))

@@ -134,3 +134,11 @@ def test_stability_report_of_the_paper_end_effector() -> None:
     assert report.zeta_max[0] == pytest.approx(150 / (2 * np.sqrt(20 * 90)))
     assert report.zeta_max[0] > 1
     assert report.omega_n_max[0] == pytest.approx(np.sqrt(15.0))
+
+
+def test_simulate_with_a_law_name_needs_dt_and_params() -> None:
+    with pytest.raises(ParameterError, match=r"^dt and params are required with a law name$"):
+        simulate("fixed", np.zeros((3, 1)), 0.001)
+    controller = make("fixed", EE, axes=1)
+    with pytest.raises(ParameterError, match=r"^pass either a controller or law/params/dt"):
+        simulate(controller, np.zeros((3, 1)), params=EE)
