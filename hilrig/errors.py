@@ -19,3 +19,28 @@ class ParameterError(ControlError, ValueError):
 
 class NonFiniteForceError(ControlError, ValueError):
     """A force/torque input was NaN or infinite; it is refused, never integrated."""
+
+
+class RecordingError(HilrigError):
+    """An MCAP session cannot be written or read as asked; the message names the file and why."""
+
+
+class DriverError(HilrigError):
+    """A device driver failed; the message names the device, endpoint and what happened."""
+
+
+class LinkError(DriverError):
+    """A device link (serial port, socket) could not be opened or was lost."""
+
+
+class ProtocolError(DriverError):
+    """A device sent bytes that do not follow its protocol."""
+
+
+class ModbusExceptionError(DriverError):
+    """The Modbus device answered a request with an exception code."""
+
+    def __init__(self, code: int, name: str, request: str) -> None:
+        super().__init__(f"Modbus exception {code} ({name}) in reply to {request}")
+        self.code = code
+        self.code_name = name
