@@ -81,12 +81,6 @@ def test_sweep_csv_has_one_row_per_case(reproduction: Reproduction) -> None:
     )
 
 
-# typer runs an app's only command without its name; `hilrig paper` needs the app to have a
-# callback or a second command (hilrig/cli/app.py). Once it has either, this must pass.
-LONE_COMMAND = len(app.registered_commands) == 1 and app.registered_callback is None
-
-
-@pytest.mark.xfail(LONE_COMMAND, reason="typer collapses a lone command", strict=True)
 def test_paper_command_writes_files_and_prints_the_table(tmp_path: Path) -> None:
     result = CliRunner().invoke(app, ["paper", "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output
