@@ -44,3 +44,7 @@ class ModbusExceptionError(DriverError):
         super().__init__(f"Modbus exception {code} ({name}) in reply to {request}")
         self.code = code
         self.code_name = name
+
+
+class RobotModelError(HilrigError, ValueError):
+    """A robot model cannot be built or was called with inputs of the wrong shape."""
