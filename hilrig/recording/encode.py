@@ -1,0 +1,184 @@
+"""Samples to MCAP Message records: one ``struct.Struct`` per channel, no generic serialisation.
+
+A channel's layout is taken once from a prototype message of its :class:`.ChannelSpec` shape
+(:func:`.cdr.prototype`); the bytes that never change (encapsulation header, frame id, names,
+sequence lengths, padding) become constant ``s`` fields of the struct, the values become its
+numeric fields, and encoding a sample is a single ``Struct.pack`` of record header and payload.
+Events carry free text, so their layout is worked out per message.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Callable
+
+from hilrig.errors import RecordingError
+from hilrig.recording.cdr import ColumnKind, Layout, layout_of, prototype
+from hilrig.recording.mcap_records import MESSAGE_PREFIX, Op
+from hilrig.recording.msgdef import MessageDefs, packaged_defs, short_name
+from hilrig.recording.samples import (
+    ControllerSample,
+    EventRecord,
+    JointSample,
+    LoopTiming,
+    PoseSample,
+    Sample,
+    WrenchSample,
+)
+from hilrig.recording.schema import JOINT_ARRAYS, ChannelSpec, MessageType
+
+_STRUCT_CODES = {
+    "?": "?",
+    "u1": "B",
+    "i1": "b",
+    "<i2": "h",
+    "<u2": "H",
+    "<i4": "i",
+    "<u4": "I",
+    "<i8": "q",
+    "<u8": "Q",
+    "<f4": "f",
+    "<f8": "d",
+}
+_NS_PER_S = 1_000_000_000
+
+Values = tuple[float, ...]
+
+
+class _Packer:
+    """Packs Message records of one layout: constant runs of bytes interleaved with values."""
+
+    def __init__(self, channel_id: int, message: bytes, layout: Layout) -> None:
+        fmt = [MESSAGE_PREFIX.format]
+        segments: list[tuple[bytes, int]] = []
+        cursor = 0
+        for column in layout.columns:
+            if column.kind is ColumnKind.TEXT:
+                continue
+            if column.offset > cursor or not segments:
+                gap = message[cursor : column.offset]
+                segments.append((gap, 0))
+                fmt.append(f"{len(gap)}s")
+            if column.kind is ColumnKind.TIME:
+                code, count = "iI", 2
+            else:
+                code, count = _STRUCT_CODES[column.dtype], 1
+            fmt.append(code)
+            segments[-1] = (segments[-1][0], segments[-1][1] + count)
+            cursor = column.offset + struct.calcsize("<" + code)
+        segments.append((message[cursor:], 0))
+        fmt.append(f"{len(message) - cursor}s")
+        self.struct = struct.Struct("".join(fmt))
+        self.prefix = (Op.MESSAGE, MESSAGE_PREFIX.size - 9 + len(message), channel_id)
+        self.segments = tuple(segments)
+
+    def pack(self, sequence: int, log_ns: int, publish_ns: int, values: Values) -> bytes:
+        parts: list[object] = [*self.prefix, sequence, log_ns, publish_ns]
+        i = 0
+        for constant, count in self.segments:
+            parts.append(constant)
+            if count:
+                parts.extend(values[i : i + count])
+                i += count
+        return self.struct.pack(*parts)
+
+
+class ChannelEncoder:
+    """Encodes the samples of one channel into complete MCAP Message records (bytes)."""
+
+    def __init__(self, channel_id: int, spec: ChannelSpec) -> None:
+        self.channel_id = channel_id
+        self.spec = spec
+        self.defs: MessageDefs = packaged_defs(spec.type.value)
+        self.root = short_name(spec.type.value)
+        self._values = _value_function(spec)
+        self._packer: _Packer | None = None
+        if spec.type is not MessageType.EVENT:
+            message = prototype(self.defs, self.root, spec.shape)
+            self._packer = _Packer(channel_id, message, layout_of(self.defs, self.root, message))
+
+    def encode(self, sample: Sample, sequence: int, log_ns: int, publish_ns: int) -> bytes:
+        """The Message record of ``sample``; its header stamp is ``log_ns``.
+
+        Raises RecordingError when the sample does not fit the channel (type, array lengths,
+        values out of range of their fields).
+        """
+        sec, nanosec = divmod(log_ns, _NS_PER_S)
+        values = (sec, nanosec, *self._values(sample))
+        packer = self._packer or self._event_packer(sample)
+        try:
+            return packer.pack(sequence, log_ns, publish_ns, values)
+        except struct.error as err:
+            raise RecordingError(f"channel {self.spec.topic}: cannot encode sample: {err}") from err
+
+    def _event_packer(self, sample: Sample) -> _Packer:
+        assert isinstance(sample, EventRecord)  # checked by _value_function
+        shape = {"source": sample.source, "detail": sample.detail, "axis": sample.axis}
+        message = prototype(self.defs, self.root, shape)
+        return _Packer(self.channel_id, message, layout_of(self.defs, self.root, message))
+
+
+def _value_function(spec: ChannelSpec) -> Callable[[Sample], Values]:
+    """The function listing a sample's values (after the header stamp) in schema order."""
+    n = len(spec.names)
+    topic = spec.topic
+
+    def wrong(sample: Sample, expected: type) -> RecordingError:
+        got = type(sample).__name__
+        return RecordingError(f"channel {topic} takes {expected.__name__}, got {got}")
+
+    def wrench(s: Sample) -> Values:
+        if not isinstance(s, WrenchSample):
+            raise wrong(s, WrenchSample)
+        return (*s.force, *s.torque)
+
+    lengths = tuple(n if a in spec.arrays else 0 for a in JOINT_ARRAYS)
+
+    def joints(s: Sample) -> Values:
+        if not isinstance(s, JointSample):
+            raise wrong(s, JointSample)
+        if (len(s.position), len(s.velocity), len(s.effort)) != lengths:
+            raise RecordingError(f"channel {topic}: joint arrays must have lengths {lengths}")
+        return (*s.position, *s.velocity, *s.effort)
+
+    def pose(s: Sample) -> Values:
+        if not isinstance(s, PoseSample):
+            raise wrong(s, PoseSample)
+        return (*s.position, *s.orientation)
+
+    def controller(s: Sample) -> Values:
+        if not isinstance(s, ControllerSample):
+            raise wrong(s, ControllerSample)
+        arrays = (s.force, s.offset, s.offset_rate, s.damping, s.stiffness, s.chi, s.zeta)
+        if any(len(a) != n for a in arrays) or len(s.contact_state) != n:
+            raise RecordingError(f"channel {topic}: every controller array needs {n} entries")
+        return (
+            *s.force,
+            *s.offset,
+            *s.offset_rate,
+            *s.damping,
+            *s.stiffness,
+            *s.chi,
+            *s.zeta,
+            *s.contact_state,
+        )
+
+    def event(s: Sample) -> Values:
+        if not isinstance(s, EventRecord):
+            raise wrong(s, EventRecord)
+        return (int(s.kind), s.value)
+
+    def loop(s: Sample) -> Values:
+        if not isinstance(s, LoopTiming):
+            raise wrong(s, LoopTiming)
+        return (s.tick, s.period_ns, s.compute_ns, s.lateness_ns, s.overruns, s.queue_drops)
+
+    functions: dict[MessageType, Callable[[Sample], Values]] = {
+        MessageType.WRENCH: wrench,
+        MessageType.JOINT_STATE: joints,
+        MessageType.POSE: pose,
+        MessageType.CONTROLLER_STATE: controller,
+        MessageType.EVENT: event,
+        MessageType.LOOP_DIAGNOSTICS: loop,
+    }
+    return functions[spec.type]

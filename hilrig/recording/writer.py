@@ -1,0 +1,335 @@
+"""The session writer: MCAP (profile ``ros2``, ``cdr``, zstd chunks) fit for a 1 kHz loop.
+
+Messages are packed with one ``struct`` call each (:mod:`.encode`) into an in-memory chunk, in
+arrival order, as rosbag2 writes them. A chunk is compressed, written and flushed to the
+operating system as soon as it spans ``chunk_span_s`` of log time, so a killed process loses at
+most that much (0.25 s by default; DESIGN.md allows 0.5 s) and ``hilrig recover`` restores the
+rest. Schemas, channels, metadata and attachments are written before any chunk, so a file cut
+anywhere is recoverable. Long sessions can be split into numbered files by duration or size.
+
+The writer is not thread-safe: the rig calls it from its logging thread, never from the tick.
+"""
+
+from __future__ import annotations
+
+import os
+import zlib
+from array import array
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import BinaryIO
+
+import zstandard
+
+from hilrig import __version__
+from hilrig.errors import RecordingError
+from hilrig.recording import mcap_records as rec
+from hilrig.recording.encode import ChannelEncoder
+from hilrig.recording.msgdef import full_definition
+from hilrig.recording.samples import Sample
+from hilrig.recording.schema import (
+    MESSAGE_ENCODING,
+    PROFILE,
+    SCHEMA_ENCODING,
+    ChannelSpec,
+    MessageType,
+)
+from hilrig.recording.session import (
+    CALIBRATION_METADATA,
+    SESSION_METADATA,
+    SessionInfo,
+    calibration_metadata,
+)
+
+LIBRARY = f"hilrig/{__version__}"
+_U32 = 0xFFFFFFFF
+
+
+@dataclass(frozen=True)
+class SplitPolicy:
+    """Start a new numbered file once the current one spans ``max_duration_s`` of log time or
+    holds ``max_bytes``; either may be None. Files are ``<stem>_000.mcap``, ``<stem>_001.mcap``..
+    """
+
+    max_duration_s: float | None = None
+    max_bytes: int | None = None
+
+
+def part_path(path: Path, part: int) -> Path:
+    """The file of split part number ``part`` of a session written to ``path``."""
+    return path.with_name(f"{path.stem}_{part:03d}{path.suffix}")
+
+
+class _Channel:
+    __slots__ = ("counter", "device_clock", "encoder", "record")
+
+    def __init__(self, record: rec.Channel, encoder: ChannelEncoder, device_clock: bool) -> None:
+        self.record = record
+        self.encoder = encoder
+        self.device_clock = device_clock
+        self.counter = 0
+
+
+class SessionWriter:
+    """Write one session to ``path`` (or to numbered parts of it when ``split`` is given).
+
+    ``session`` becomes the ``session`` metadata record, ``calibration`` the ``calibration``
+    record; ``attachments`` (config, URDF, scenario) are stored as MCAP attachments; every part
+    of a split session repeats all three. Refuses to overwrite an existing file.
+    Raises RecordingError for an existing output, an unknown topic or a sample that does not fit.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        session: SessionInfo,
+        *,
+        channels: Iterable[ChannelSpec] = (),
+        calibration: Mapping[str, object] | None = None,
+        attachments: Sequence[rec.Attachment] = (),
+        chunk_span_s: float = 0.25,
+        max_chunk_bytes: int = 8 << 20,
+        compression_level: int = 3,
+        split: SplitPolicy | None = None,
+    ) -> None:
+        if not 0 < chunk_span_s <= 0.5:
+            raise RecordingError(f"chunk_span_s must be in (0, 0.5] s, got {chunk_span_s}")
+        self.path = Path(path)
+        self.session = session
+        self._offset_ns = session.clock_offset_ns
+        self._metadata: list[rec.Metadata] = []  # after the session record, in every part
+        if calibration:
+            self._metadata.append(
+                rec.Metadata(CALIBRATION_METADATA, calibration_metadata(calibration))
+            )
+        # An empty serialized_metadata makes rosbag2 read the numeric QoS policies.
+        self._metadata.append(rec.Metadata("rosbag2", {"serialized_metadata": ""}))
+        self._attachments = list(attachments)
+        self._span_ns = round(chunk_span_s * 1e9)
+        self._max_chunk_bytes = max_chunk_bytes
+        self._compressor = zstandard.ZstdCompressor(level=compression_level)
+        self._split = split
+        self._schemas: dict[MessageType, rec.Schema] = {}
+        self._channels: dict[str, _Channel] = {}
+        self._file: BinaryIO | None = None
+        self.paths: list[Path] = []
+        self._part = 0
+        # Per part (reset by _open_part): bytes written, open chunk, indexes and counts.
+        self._pos = 0
+        self._buf = bytearray()
+        self._index: dict[int, array[int]] = {}
+        self._counts: dict[int, int] = {}
+        self._chunk_start = self._chunk_end = 0
+        self._part_start, self._part_end = 2**64 - 1, 0
+        self._chunk_indexes: list[rec.ChunkIndex] = []
+        self._metadata_indexes: list[bytes] = []
+        self._attachment_indexes: list[bytes] = []
+        self._open_part()
+        for spec in channels:
+            self.add_channel(spec)
+
+    # -- public API -------------------------------------------------------------------------
+
+    def add_channel(self, spec: ChannelSpec) -> None:
+        """Register ``spec``'s topic. Raises RecordingError if the topic is already taken."""
+        if spec.topic in self._channels:
+            raise RecordingError(f"{self.path}: topic {spec.topic} is already registered")
+        schema = self._schemas.get(spec.type)
+        if schema is None:
+            data = full_definition(spec.type.value).encode()
+            schema = rec.Schema(len(self._schemas) + 1, spec.type.value, SCHEMA_ENCODING, data)
+            self._schemas[spec.type] = schema
+            self._write(schema.encode())
+        channel_id = len(self._channels) + 1
+        record = rec.Channel(channel_id, schema.id, spec.topic, MESSAGE_ENCODING, spec.metadata)
+        self._channels[spec.topic] = _Channel(
+            record, ChannelEncoder(channel_id, spec), spec.device_clock
+        )
+        self._write(record.encode())
+
+    def write(self, topic: str, sample: Sample) -> None:
+        """Record ``sample`` on ``topic``; its log time is ``sample.t_ns`` on the session clock.
+
+        Raises RecordingError for an unknown topic, a closed writer, a sample of the wrong type
+        or shape, or a device channel's sample without device time and sequence.
+        """
+        channel = self._channels.get(topic)
+        if channel is None or self._file is None:
+            raise RecordingError(f"{self.path}: cannot write to {topic} (unknown or closed)")
+        log_ns = sample.t_ns + self._offset_ns
+        if channel.device_clock:
+            publish_ns = getattr(sample, "device_t_ns", None)
+            sequence = getattr(sample, "device_seq", None)
+            if publish_ns is None or sequence is None:
+                raise RecordingError(f"{topic}: samples need device_t_ns and device_seq")
+            sequence &= _U32
+        else:
+            publish_ns = log_ns
+            sequence = channel.counter & _U32
+            channel.counter += 1
+        data = channel.encoder.encode(sample, sequence, log_ns, publish_ns)
+        if not self._buf:
+            self._chunk_start = self._chunk_end = log_ns
+        elif log_ns - self._chunk_start >= self._span_ns or len(self._buf) > self._max_chunk_bytes:
+            self.flush()
+            self._chunk_start = self._chunk_end = log_ns
+        index = self._index.get(channel.record.id)
+        if index is None:
+            index = self._index[channel.record.id] = array("Q")
+        index.append(log_ns)
+        index.append(len(self._buf))
+        self._buf += data
+        self._chunk_start = min(self._chunk_start, log_ns)
+        self._chunk_end = max(self._chunk_end, log_ns)
+        self._counts[channel.record.id] = self._counts.get(channel.record.id, 0) + 1
+
+    def flush(self) -> None:
+        """Compress and write the open chunk now and hand it to the operating system."""
+        if not self._buf or self._file is None:
+            return
+        data = self._buf
+        compressed = self._compressor.compress(data)
+        chunk_offset = self._pos
+        self._write(
+            rec.chunk_head(
+                start_ns=self._chunk_start,
+                end_ns=self._chunk_end,
+                uncompressed_size=len(data),
+                uncompressed_crc=zlib.crc32(data),
+                compression="zstd",
+                compressed_size=len(compressed),
+            )
+        )
+        self._write(compressed)
+        chunk_length = self._pos - chunk_offset
+        index_offsets: dict[int, int] = {}
+        index_start = self._pos
+        for channel_id, entries in self._index.items():
+            index_offsets[channel_id] = self._pos
+            self._write(rec.message_index(channel_id, entries.tobytes()))
+        self._chunk_indexes.append(
+            rec.ChunkIndex(
+                self._chunk_start,
+                self._chunk_end,
+                chunk_offset,
+                chunk_length,
+                index_offsets,
+                self._pos - index_start,
+                "zstd",
+                len(compressed),
+                len(data),
+            )
+        )
+        self._part_start = min(self._part_start, self._chunk_start)
+        self._part_end = max(self._part_end, self._chunk_end)
+        self._buf = bytearray()
+        self._index = {}
+        assert self._file is not None
+        self._file.flush()
+        if self._split_due():
+            self._finish_part()
+            self._part += 1
+            self._open_part()
+
+    def close(self) -> None:
+        """Write what is buffered and the summary; the file is then complete. Idempotent."""
+        if self._file is not None:
+            self.flush()
+            self._finish_part()
+
+    def __enter__(self) -> SessionWriter:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    # -- parts ------------------------------------------------------------------------------
+
+    def _split_due(self) -> bool:
+        policy = self._split
+        if policy is None:
+            return False
+        duration_s = (self._part_end - self._part_start) / 1e9
+        too_long = policy.max_duration_s is not None and duration_s >= policy.max_duration_s
+        too_big = policy.max_bytes is not None and self._pos >= policy.max_bytes
+        return too_long or too_big
+
+    def _open_part(self) -> None:
+        path = self.path if self._split is None else part_path(self.path, self._part)
+        try:
+            self._file = path.open("xb")
+        except FileExistsError as err:
+            raise RecordingError(f"{path}: already exists; refusing to overwrite it") from err
+        except OSError as err:
+            raise RecordingError(f"{path}: cannot create ({err.strerror})") from err
+        self.paths.append(path)
+        self._pos = 0
+        self._buf = bytearray()
+        self._index = {}
+        self._counts = {}
+        self._part_start, self._part_end = 2**64 - 1, 0
+        self._chunk_indexes = []
+        self._metadata_indexes = []
+        self._attachment_indexes = []
+        self._write(rec.MAGIC + rec.header(PROFILE, LIBRARY))
+        for schema in self._schemas.values():
+            self._write(schema.encode())
+        for channel in self._channels.values():
+            self._write(channel.record.encode())
+        session = rec.Metadata(SESSION_METADATA, self.session.to_metadata(part=self._part))
+        for metadata in [session, *self._metadata]:
+            offset = self._pos
+            self._write(metadata.encode())
+            self._metadata_indexes.append(
+                rec.metadata_index(offset, self._pos - offset, metadata.name)
+            )
+        for attachment in self._attachments:
+            offset = self._pos
+            self._write(attachment.encode())
+            self._attachment_indexes.append(
+                rec.attachment_index(offset, self._pos - offset, attachment)
+            )
+        assert self._file is not None
+        self._file.flush()
+
+    def _finish_part(self) -> None:
+        assert self._file is not None
+        counts = self._counts
+        statistics = rec.Statistics(
+            message_count=sum(counts.values()),
+            schema_count=len(self._schemas),
+            channel_count=len(self._channels),
+            attachment_count=len(self._attachments),
+            metadata_count=len(self._metadata_indexes),
+            chunk_count=len(self._chunk_indexes),
+            message_start_time=self._part_start if counts else 0,
+            message_end_time=self._part_end if counts else 0,
+            channel_message_counts={
+                c.record.id: counts.get(c.record.id, 0) for c in self._channels.values()
+            },
+        )
+        self._write(
+            rec.data_end_and_summary(
+                self._pos,
+                schemas=list(self._schemas.values()),
+                channels=[c.record for c in self._channels.values()],
+                statistics=statistics,
+                chunk_indexes=self._chunk_indexes,
+                attachment_indexes=self._attachment_indexes,
+                metadata_indexes=self._metadata_indexes,
+            )
+        )
+        self._file.close()
+        self._file = None
+
+    def _write(self, data: bytes | bytearray) -> None:
+        assert self._file is not None
+        self._file.write(data)
+        self._pos += len(data)
