@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
+from rich import box
 from rich.table import Table
 
 from hilrig.paper.experiments import (
@@ -157,6 +158,7 @@ class Section:
 
     title: str
     frame: pd.DataFrame
+    terminal_columns: tuple[str, ...] | None = None  # the subset shown on a terminal, if any
 
 
 _LABEL_COLUMNS = frozenset({"axis", "law", "comparison", "quantity", "figure", "case"})
@@ -226,7 +228,8 @@ def sweep_section(sweeps: pd.DataFrame) -> Section:
     for column, header in _SWEEP_HEADERS.items():
         frame[header] = [_significant(float(v)) for v in sweeps[column]]
     title = "section 2.1: fixed-law step responses (offsets in mm, times in s)"
-    return Section(title, frame)
+    compact = ("case", "zeta", "peak (mm)", "overshoot (%)", "time to peak (s)")
+    return Section(title, frame, terminal_columns=(*compact, "peak speed (mm/s)"))
 
 
 def markdown(frame: pd.DataFrame) -> str:
@@ -264,11 +267,15 @@ def write_tables(table: pd.DataFrame, sweeps: pd.DataFrame, out_dir: Path) -> li
 
 
 def rich_table(section: Section) -> Table:
-    """A rich Table of a display section, numbers right-aligned."""
-    table = Table(title=section.title, title_justify="left")
-    for column in section.frame.columns:
+    """A rich Table of a display section (its terminal subset), numbers right-aligned."""
+    table = Table(title=section.title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
+    frame = section.frame
+    if section.terminal_columns is not None:
+        frame = frame[list(section.terminal_columns)]
+    for column in frame.columns:
         numeric = column not in _LABEL_COLUMNS
-        table.add_column(str(column), justify="right" if numeric else "left")
-    for row in section.frame.itertuples(index=False):
+        header = str(column).replace(" (", "\n(")  # units under the name: narrower columns
+        table.add_column(header, justify="right" if numeric else "left", no_wrap=not numeric)
+    for row in frame.itertuples(index=False):
         table.add_row(*(str(v) for v in row))
     return table
