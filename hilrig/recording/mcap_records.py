@@ -157,16 +157,19 @@ def message_index(channel_id: int, entries: bytes) -> bytes:
     return record(Op.MESSAGE_INDEX, struct.pack("<HI", channel_id, len(entries)) + entries)
 
 
-def attachment_index(offset: int, length: int, attachment: Attachment) -> bytes:
-    body = struct.pack(
-        "<QQQQQ",
-        offset,
-        length,
-        attachment.log_time,
-        attachment.create_time,
-        len(attachment.data),
-    )
-    return record(Op.ATTACHMENT_INDEX, body + _str(attachment.name) + _str(attachment.media_type))
+def attachment_index(
+    offset: int,
+    length: int,
+    *,
+    name: str,
+    media_type: str,
+    log_time: int,
+    create_time: int,
+    data_size: int,
+) -> bytes:
+    """The AttachmentIndex of the attachment record at ``offset`` (``length`` bytes)."""
+    body = struct.pack("<QQQQQ", offset, length, log_time, create_time, data_size)
+    return record(Op.ATTACHMENT_INDEX, body + _str(name) + _str(media_type))
 
 
 def metadata_index(offset: int, length: int, name: str) -> bytes:

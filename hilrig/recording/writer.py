@@ -294,7 +294,15 @@ class SessionWriter:
             offset = self._pos
             self._write(attachment.encode())
             self._attachment_indexes.append(
-                rec.attachment_index(offset, self._pos - offset, attachment)
+                rec.attachment_index(
+                    offset,
+                    self._pos - offset,
+                    name=attachment.name,
+                    media_type=attachment.media_type,
+                    log_time=attachment.log_time,
+                    create_time=attachment.create_time,
+                    data_size=len(attachment.data),
+                )
             )
         assert self._file is not None
         self._file.flush()
