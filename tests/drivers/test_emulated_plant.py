@@ -2,15 +2,16 @@
 
 import numpy as np
 
-from hilrig.drivers.emulated.plant import JointServoPlant, ServoLimits
+from hilrig.drivers.emulated.plant import JointServoPlant
 from hilrig.drivers.joint_targets_map import JointTargets, Mode
 from hilrig.drivers.robot_state_codec import RobotStatus
+from hilrig.robot.limits import JointLimits
 
-LIMITS = ServoLimits(
-    q_min_rad=np.full(6, -3.05),
-    q_max_rad=np.full(6, 3.05),
-    qd_max_rad_s=np.array([3.14, 3.14, 3.14, 2.6, 2.6, 2.6]),
-    qdd_max_rad_s2=np.full(6, 10.0),
+LIMITS = JointLimits(
+    position_min_rad=(-3.05,) * 6,
+    position_max_rad=(3.05,) * 6,
+    velocity_max_rad_s=(3.14, 3.14, 3.14, 2.6, 2.6, 2.6),
+    acceleration_max_rad_s2=(10.0,) * 6,
 )
 MS = 1_000_000
 
@@ -31,8 +32,10 @@ def test_tracks_a_target_within_velocity_and_acceleration_limits() -> None:
     q = np.array([s.q_rad for s in states])
     qd = np.array([s.qd_rad_s for s in states])
     np.testing.assert_allclose(q[-1], [2.0, -1.0, 0.5, 0.0, 0.0, 2.5], atol=1e-4)
-    assert (np.abs(qd) <= LIMITS.qd_max_rad_s + 1e-12).all()
-    assert (np.abs(np.diff(qd, axis=0)) <= LIMITS.qdd_max_rad_s2 * 1e-3 + 1e-12).all()
+    assert (np.abs(qd) <= np.array(LIMITS.velocity_max_rad_s) + 1e-12).all()
+    assert (
+        np.abs(np.diff(qd, axis=0)) <= np.array(LIMITS.acceleration_max_rad_s2) * 1e-3 + 1e-12
+    ).all()
     assert states[-1].status == RobotStatus.ENABLED | RobotStatus.TRACKING
 
 

@@ -12,23 +12,13 @@ arrive from the Modbus server's thread, ``advance`` runs on the state stream's t
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hilrig.drivers.joint_targets_map import JOINTS, JointTargets, Mode
 from hilrig.drivers.robot_state_codec import RobotState, RobotStatus
-
-
-@dataclass(frozen=True)
-class ServoLimits:
-    """Per-joint limits (arrays of 6): position (rad), velocity (rad/s), acceleration (rad/s^2)."""
-
-    q_min_rad: NDArray[np.float64]
-    q_max_rad: NDArray[np.float64]
-    qd_max_rad_s: NDArray[np.float64]
-    qdd_max_rad_s2: NDArray[np.float64]
+from hilrig.robot.limits import JointLimits
 
 
 class JointServoPlant:
@@ -36,14 +26,17 @@ class JointServoPlant:
 
     def __init__(
         self,
-        limits: ServoLimits,
+        limits: JointLimits,
         *,
         q0_rad: NDArray[np.float64] | None = None,
         bandwidth_rad_s: float = 60.0,
         watchdog_s: float = 0.05,
         substep_s: float = 0.0005,
     ) -> None:
-        self.limits = limits
+        self._q_min = limits.lower_rad()
+        self._q_max = limits.upper_rad()
+        self._qd_max = np.array(limits.velocity_max_rad_s)
+        self._qdd_max = np.array(limits.acceleration_max_rad_s2)
         self._q = np.zeros(JOINTS) if q0_rad is None else np.array(q0_rad, dtype=np.float64)
         self._qd = np.zeros(JOINTS)
         self._qdd = np.zeros(JOINTS)
@@ -71,9 +64,7 @@ class JointServoPlant:
             self._mode = targets.mode
             self._stopped = targets.mode is Mode.STOP
             if targets.mode is Mode.TRACK:
-                self._target = np.clip(
-                    np.asarray(targets.q_rad), self.limits.q_min_rad, self.limits.q_max_rad
-                )
+                self._target = np.clip(np.asarray(targets.q_rad), self._q_min, self._q_max)
 
     def tracking(self, now_ns: int) -> bool:
         """True while the servo follows its targets (TRACK, fresh watchdog count, no stop)."""
@@ -99,14 +90,13 @@ class JointServoPlant:
             self._t_ns += round(steps * self._substep_s * 1e9)
 
     def _substep(self, target: NDArray[np.float64]) -> None:
-        lim = self.limits
         dt = self._substep_s
         qdd = self._wn**2 * (target - self._q) - 2.0 * self._wn * self._qd
-        qdd = np.clip(qdd, -lim.qdd_max_rad_s2, lim.qdd_max_rad_s2)
-        qd = np.clip(self._qd + qdd * dt, -lim.qd_max_rad_s, lim.qd_max_rad_s)
+        qdd = np.clip(qdd, -self._qdd_max, self._qdd_max)
+        qd = np.clip(self._qd + qdd * dt, -self._qd_max, self._qd_max)
         q = self._q + qd * dt
-        at_limit = (q < lim.q_min_rad) | (q > lim.q_max_rad)
-        self._q = np.clip(q, lim.q_min_rad, lim.q_max_rad)
+        at_limit = (q < self._q_min) | (q > self._q_max)
+        self._q = np.clip(q, self._q_min, self._q_max)
         self._qd = np.where(at_limit, 0.0, qd)
         self._qdd = qdd
 
