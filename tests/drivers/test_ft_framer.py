@@ -212,8 +212,8 @@ garbage = st.lists(
 ).map(b"".join)
 
 
-def cut(draw: st.DrawFn, stream: bytes) -> list[bytes]:
-    points = sorted(draw(st.lists(st.integers(0, len(stream)), max_size=12)))
+def cut(data: st.DataObject, stream: bytes) -> list[bytes]:
+    points = sorted(data.draw(st.lists(st.integers(0, len(stream)), max_size=12)))
     edges = [0, *points, len(stream)]
     return [stream[a:b] for a, b in itertools.pairwise(edges)]
 
@@ -225,7 +225,7 @@ def test_fuzz_never_raises_and_emits_only_finite_in_range_samples(
 ) -> None:
     framer = KunweiFramer(UNIT)
     stream = b"".join(pieces)
-    samples = feed_all(framer, cut(data.draw, stream))
+    samples = feed_all(framer, cut(data, stream))
     for sample in samples:
         assert all(math.isfinite(v) for v in sample.wrench_in_sensor)
         assert all(abs(v) <= UNIT.max_abs_force_n for v in sample.force_in_sensor_n)
@@ -250,7 +250,7 @@ def test_fuzz_back_in_sync_within_two_clean_frames(
 ) -> None:
     after = data.draw(st.lists(clean_wrenches_free_of(free_of), min_size=3, max_size=6))
     framer = KunweiFramer(UNIT)
-    samples = feed_all(framer, cut(data.draw, frames(*before) + junk + frames(*after)))
+    samples = feed_all(framer, cut(data, frames(*before) + junk + frames(*after)))
     recovered = after if free_of == TAIL else after[1:]
     tail = [s.wrench_in_sensor for s in samples[len(samples) - len(recovered) :]]
     assert tail == recovered  # F2..Fn (F1..Fn) exactly: nothing lost, between or after
