@@ -43,7 +43,7 @@ from hilrig.drivers.gravity import STANDARD_GRAVITY_IN_BASE, ToolLoad
 
 Source = Callable[[float], Sequence[float]]
 Orientation = Callable[[float], NDArray[np.float64]]
-SentHook = Callable[[float, int], None]
+SentHook = Callable[[float, int], None]  # (slot time t_s, monotonic ns just before the write)
 
 MAX_LATE_SLOTS = 5
 MAX_BACKLOG_BYTES = 4096  # unsent bytes beyond which whole frames are dropped
@@ -126,7 +126,12 @@ class _Pty:
 
 
 class FtEmulator:
-    """A Kunwei sensor on a pty; drivers open ``port_path`` (a temporary one unless given)."""
+    """A Kunwei sensor on a pty; drivers open ``port_path`` (a temporary one unless given).
+
+    ``on_sent(t_s, t_ns)``, if given, is called in the emulator thread after each frame with its
+    slot time and the monotonic time just before its last byte was written (for latency
+    measurement); it must be quick.
+    """
 
     def __init__(
         self,
@@ -372,10 +377,11 @@ class FtEmulator:
             frame = frame[cut:]
             counts.split_frames += 1
         self._tx += frame
+        sent_ns = time.monotonic_ns()
         self._flush()
         counts.frames_sent += 1
         if self._on_sent is not None:
-            self._on_sent(t_s, time.monotonic_ns())
+            self._on_sent(t_s, sent_ns)
 
     def _flush(self) -> None:
         if self._pty is None:

@@ -1,0 +1,178 @@
+"""Drivers: the F/T emulator streaming at 1 kHz over a pty while the serial driver reads it.
+
+The emulator runs in its own process (spawned), the driver's reader thread in this one, as on a
+rig. Each frame carries its slot number in Fx (kgf scale 1, so the float is exact) and the
+emulator logs the monotonic time just before writing it; both processes read the same system
+monotonic clock, so receive latency = driver receive time - emulator write time. CPU is each
+process's user + system time over the streaming window (os.times), as a share of one core.
+Also timed: the framer per frame, gravity compensation per call, and warm-started IK per tick.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import tempfile
+import time
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from benchmarks.harness import Result, quantiles_us
+from hilrig.drivers import FramerConfig, FtSerial, GravityCompensator, KunweiFramer, ToolLoad
+from hilrig.drivers.emulated import EmulatorConfig, FtEmulator
+from hilrig.drivers.ft_sensor import encode_frame
+from hilrig.robot import RobotModel
+
+RATE_HZ = 1000.0
+STREAM_S = 10.0
+UNIT = FramerConfig(kgf_scale=1.0, max_abs_force_n=2.0**24)  # Fx carries the slot number
+SLOTS = int((STREAM_S + 30.0) * RATE_HZ)
+
+
+def slot_number(t_s: float) -> tuple[float, ...]:
+    """Source of the benchmark: the frame's slot number in Fx (N, exact in float32)."""
+    return (float(round(t_s * RATE_HZ) % 2**24), 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def emulator_process(port_path: str, pipe: Connection) -> None:
+    """Child process: stream until told to stop, then send back write times, stats and CPU."""
+    sent_ns = np.zeros(SLOTS, dtype=np.int64)
+
+    def on_sent(t_s: float, t_ns: int) -> None:
+        slot = round(t_s * RATE_HZ)
+        if slot < SLOTS:
+            sent_ns[slot] = t_ns
+
+    config = EmulatorConfig(rate_hz=RATE_HZ, kgf_scale=1.0)
+    with FtEmulator(slot_number, config=config, port_path=port_path, on_sent=on_sent) as emu:
+        pipe.send("ready")
+        pipe.recv()  # "start": the driver is about to connect
+        cpu0, wall0 = cpu_s(), time.monotonic()
+        pipe.recv()  # "stop"
+        cpu1, wall1 = cpu_s(), time.monotonic()
+        stats = emu.stats()
+    pipe.send((sent_ns, stats, (cpu1 - cpu0) / (wall1 - wall0)))
+
+
+def cpu_s() -> float:
+    """User + system CPU time of this process so far, s."""
+    times = os.times()
+    return times.user + times.system
+
+
+def bench_stream() -> list[Result]:
+    ctx = mp.get_context("spawn")
+    with tempfile.TemporaryDirectory(prefix="hilrig-bench-") as folder:
+        port_path = str(Path(folder) / "ft")
+        ours, theirs = ctx.Pipe()
+        child = ctx.Process(target=emulator_process, args=(port_path, theirs), daemon=True)
+        child.start()
+        assert ours.recv() == "ready"
+        ours.send("start")
+        received: list[tuple[int, float]] = []
+        with FtSerial(port_path, framer=UNIT) as ft:
+            ft.drain()
+            cpu0, wall0 = cpu_s(), time.monotonic()
+            while time.monotonic() - wall0 < STREAM_S:
+                time.sleep(0.05)
+                received.extend((s.t_ns, s.wrench_in_sensor[0]) for s in ft.drain())
+            cpu1, wall1 = cpu_s(), time.monotonic()
+            status, framer = ft.status(), ft.framer_stats()
+        ours.send("stop")
+        sent_ns, emu_stats, emu_cpu = ours.recv()
+        child.join(timeout=10)
+    window_s = wall1 - wall0
+    recv_ns = np.array([t for t, _ in received], dtype=np.int64)
+    slots = np.array([int(fx) for _, fx in received], dtype=np.int64)
+    latency_ns = recv_ns - sent_ns[slots]
+    expected = int(slots[-1] - slots[0] + 1)
+    lost = expected - len(slots)
+    rate_hz = float((len(slots) - 1) / ((recv_ns[-1] - recv_ns[0]) / 1e9))
+    q = quantiles_us(latency_ns)
+    detail: dict[str, Any] = {
+        "frames_received": len(slots),
+        "frames_expected": expected,
+        "window_s": round(window_s, 3),
+        "driver_status": str(status),
+        "framer": str(framer),
+        "emulator": str(emu_stats),
+        **{f"latency_{k}_us": round(v, 1) for k, v in q.items()},
+    }
+    driver_cpu = (cpu1 - cpu0) / window_s
+    return [
+        Result(
+            "drivers", "F/T frame rate received", rate_hz, "Hz", ">= 990", rate_hz >= 990, detail
+        ),
+        Result("drivers", "F/T frames lost", lost, "frames", "", None, detail),
+        Result("drivers", "F/T receive latency p50", q["p50"], "us", "", None, detail),
+        Result("drivers", "F/T receive latency p99", q["p99"], "us", "<= 1000", q["p99"] <= 1000),
+        Result("drivers", "F/T receive latency max", q["max"], "us", "", None),
+        Result("drivers", "CPU emulator process", 100 * emu_cpu, "% core", "", None),
+        Result("drivers", "CPU driver process", 100 * driver_cpu, "% core", "", None),
+    ]
+
+
+def bench_framer() -> list[Result]:
+    frames = [encode_frame((float(k), 1.0, 2.0, 0.1, 0.2, 0.3)) for k in range(1000)]
+    framer = KunweiFramer()
+    framer.feed(frames[0] + frames[1])
+    count = 100_000
+    start = time.perf_counter_ns()
+    for k in range(count):
+        framer.feed(frames[k % 1000], 0)
+    per_frame_us = (time.perf_counter_ns() - start) / count / 1e3
+    return [Result("drivers", "framer feed per 28-byte frame", per_frame_us, "us", "", None)]
+
+
+def bench_compensation() -> list[Result]:
+    compensator = GravityCompensator(ToolLoad(1.0, (0.0, 0.01, 0.06)))
+    wrench, rotation, out = np.ones(6), np.eye(3), np.empty(6)
+    count = 100_000
+    start = time.perf_counter_ns()
+    for _ in range(count):
+        compensator.compensate(wrench, rotation, out)
+    per_call_us = (time.perf_counter_ns() - start) / count / 1e3
+    return [Result("drivers", "gravity compensation per call", per_call_us, "us", "", None)]
+
+
+def bench_ik() -> list[Result]:
+    """IK every 1 ms tick along a joint-space swing (up to 1.8 rad/s), warm-started."""
+    model = RobotModel()
+    centre = np.array([0.1, -0.5, 1.2, 0.3, 1.0, 0.2])
+    rates = np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+    ticks = 20_000
+    poses = [model.fk(centre + 0.3 * np.sin(rates * k * 1e-3)) for k in range(ticks)]
+    q = model.ik(poses[0], centre, max_iterations=50).q_rad
+    times_ns = np.empty(ticks, dtype=np.int64)
+    iterations = np.empty(ticks, dtype=np.int64)
+    unconverged = 0
+    clock = time.perf_counter_ns
+    for k, pose in enumerate(poses):
+        start = clock()
+        result = model.ik(pose, q, max_iterations=5)
+        times_ns[k] = clock() - start
+        q = result.q_rad
+        iterations[k] = result.iterations
+        unconverged += not result.converged
+    q_us = quantiles_us(times_ns)
+    detail = {
+        "ticks": ticks,
+        "unconverged": unconverged,
+        "iterations_histogram": np.bincount(iterations).tolist(),
+        **{f"{k}_us": round(v, 2) for k, v in q_us.items()},
+    }
+    return [
+        Result("drivers", "IK per tick mean (warm start)", q_us["mean"], "us", "", None, detail),
+        Result("drivers", "IK per tick p99", q_us["p99"], "us", "<= 100", q_us["p99"] <= 100),
+        Result(
+            "drivers", "IK iterations mean", float(iterations.mean()), "steps", "", None, detail
+        ),
+        Result("drivers", "IK unconverged ticks", unconverged, "ticks", "== 0", unconverged == 0),
+    ]
+
+
+def run() -> list[Result]:
+    return bench_stream() + bench_framer() + bench_compensation() + bench_ik()
