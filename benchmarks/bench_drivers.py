@@ -73,7 +73,7 @@ def bench_stream() -> list[Result]:
         assert ours.recv() == "ready"
         ours.send("start")
         received: list[tuple[int, float]] = []
-        with FtSerial(port_path, framer=UNIT) as ft:
+        with FtSerial(port_path, framer_config=UNIT) as ft:
             ft.drain()
             cpu0, wall0 = cpu_s(), time.monotonic()
             while time.monotonic() - wall0 < STREAM_S:

@@ -44,7 +44,7 @@ class FtSerial(Reader[FtSample]):
         port: str,
         *,
         baudrate: int = DEFAULT_BAUDRATE,
-        framer: FramerConfig | None = None,
+        framer_config: FramerConfig | None = None,
         read_timeout_s: float = 0.02,
         stall_after_s: float = 0.05,
         restart_after_s: float = 0.5,
@@ -52,7 +52,7 @@ class FtSerial(Reader[FtSample]):
     ) -> None:
         self.port = port
         self._baudrate = baudrate
-        self._framer = KunweiFramer(framer)
+        self._framer = KunweiFramer(framer_config)
         self._read_timeout_s = read_timeout_s
         self._stall_after_ns = round(stall_after_s * 1e9)
         self._restart_after_ns = round(restart_after_s * 1e9)

@@ -69,7 +69,7 @@ class RobotModel:
     """Kinematics of a 6-joint arm from a URDF (default: the packaged AUBO-i5).
 
     Raises :class:`~hilrig.errors.RobotModelError` if the URDF has no ``flange`` frame or not
-    six joints.
+    six joints, and from every method given a joint vector that is not of shape (6,).
     """
 
     def __init__(

@@ -191,6 +191,8 @@ class FtEmulator:
 
     def stop(self) -> None:
         """Stop the thread, close the pty and remove ``port_path`` (and its temporary folder)."""
+        if self._wake_w < 0:
+            return  # already stopped
         self._stop.set()
         self._wake()
         if self._thread.is_alive():
@@ -349,12 +351,9 @@ class FtEmulator:
         values = self._device_values(t_s)
         with self._lock:
             garbage, self._garbage = self._garbage, bytearray()
-            split = self._split_left > 0
-            header = self._header_left > 0
-            bad = self._bad_left > 0
-            self._split_left -= split
-            self._header_left -= header
-            self._bad_left -= bad
+            split, self._split_left = self._split_left > 0, max(self._split_left - 1, 0)
+            header, self._header_left = self._header_left > 0, max(self._header_left - 1, 0)
+            bad, self._bad_left = self._bad_left > 0, max(self._bad_left - 1, 0)
         counts = self._counts
         if header:
             values = [_with_header_bytes(v) for v in values]
