@@ -194,7 +194,8 @@ class FtSerial(Reader[FtSample]):
                 self._last_error = f"{type(err).__name__}: {err}"
                 if port is not None:
                     self._serial = None
-                    port.close()
+                    with contextlib.suppress(Exception):  # a broken port may fail to close too
+                        port.close()
                 self._stop.wait(delay_s)
                 delay_s = min(2 * delay_s, self._backoff_s[1])
 
