@@ -1,6 +1,6 @@
 """Joint targets to the robot over Modbus RTU (function 16), from a latest-value writer thread.
 
-``submit(q_rad)`` never blocks: it stores the newest targets and wakes the writer thread, which
+``write(q_rad)`` never blocks: it stores the newest targets and wakes the writer thread, which
 writes the register map (joint_targets_map.py) with a fresh watchdog counter. Targets replaced
 before they were written are counted as superseded (latest-value semantics: the robot should
 only ever get the newest). Modbus exception replies become ModbusExceptionError, counted by
@@ -22,6 +22,7 @@ from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import ModbusException
 
+from hilrig.drivers.base import LinkStatus, Writer
 from hilrig.drivers.joint_targets_map import JOINTS, JointTargets, Mode, RegisterMap
 from hilrig.errors import LinkError, ModbusExceptionError
 
@@ -83,8 +84,8 @@ class WriterStats:
     last_latency_ns: int = 0  # submit -> acknowledged, of the last write
 
 
-class JointTargetsWriter:
-    """Writes the newest submitted joint targets to the robot; use as a context manager."""
+class JointTargetsWriter(Writer[ArrayLike]):
+    """Writes the newest joint targets to the robot; ``with writer:`` connects and closes."""
 
     def __init__(
         self,
@@ -99,36 +100,51 @@ class JointTargetsWriter:
         self._lock = threading.Lock()
         self._wake = threading.Event()
         self._stop = threading.Event()
+        self._linked = threading.Event()
         self._pending: tuple[tuple[float, ...], Mode, int] | None = None
         self._sequence = 0
-        self._thread = threading.Thread(target=self._run, daemon=True, name="joint-targets")
+        self._thread: threading.Thread | None = None
         self.stats = WriterStats()
+        self.errors = 0
         self.last_error: Exception | None = None
-        self.connected = False
 
-    def start(self) -> None:
+    def connect(self, *, timeout_s: float | None = 1.0) -> None:
+        """Start the writer thread; wait until the link is open if asked.
+
+        Raises LinkError if the endpoint cannot be reached within ``timeout_s`` (None: do not
+        wait; the thread keeps trying with backoff).
+        """
+        if self.is_connected:
+            return
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, daemon=True, name="joint-targets")
         self._thread.start()
+        if timeout_s is not None and not self._linked.wait(timeout_s):
+            self.close()
+            raise LinkError(f"cannot connect to Modbus {self.endpoint} within {timeout_s} s")
 
     def close(self) -> None:
-        """Stop the thread (after the write in flight) and close the link."""
+        """Stop the thread (after the write in flight) and close the link. Idempotent."""
         self._stop.set()
         self._wake.set()
-        if self._thread.is_alive():
+        if self._thread is not None:
             self._thread.join(timeout=5)
+            self._thread = None
 
-    def __enter__(self) -> JointTargetsWriter:
-        self.start()
-        return self
+    @property
+    def is_connected(self) -> bool:
+        """True while the thread runs and the link is open."""
+        return self._thread is not None and self._thread.is_alive() and self._linked.is_set()
 
-    def __exit__(self, *_: object) -> None:
-        self.close()
+    def write(self, value: ArrayLike, mode: Mode = Mode.TRACK) -> None:
+        """Queue the newest joint targets (6, rad); never blocks.
 
-    def submit(self, q_rad: ArrayLike, mode: Mode = Mode.TRACK) -> bool:
-        """Queue the newest targets (rad); never blocks. False if refused as non-finite."""
-        q = tuple(float(v) for v in np.asarray(q_rad, dtype=np.float64).reshape(JOINTS))
+        Non-finite targets are refused (counted in ``stats.refused``), never sent.
+        """
+        q = tuple(float(v) for v in np.asarray(value, dtype=np.float64).reshape(JOINTS))
         if not all(np.isfinite(q)):
             self.stats.refused += 1
-            return False
+            return
         now = time.monotonic_ns()
         with self._lock:
             if self._pending is not None:
@@ -136,7 +152,21 @@ class JointTargetsWriter:
             self._pending = (q, mode, now)
             self.stats.submitted += 1
         self._wake.set()
-        return True
+
+    def status(self) -> LinkStatus:
+        """Link health; ``samples`` counts acknowledged writes, ``age_ns`` the last one's age."""
+        last = self.stats.last_write_ns
+        return LinkStatus(
+            endpoint=str(self.endpoint),
+            connected=self.is_connected,
+            samples=self.stats.written,
+            rate_hz=0.0,
+            age_ns=None if last == 0 else time.monotonic_ns() - last,
+            stalls=0,
+            reconnects=self.stats.reconnects,
+            errors=self.errors,
+            last_error="" if self.last_error is None else str(self.last_error),
+        )
 
     def _take(self) -> tuple[tuple[float, ...], Mode, int] | None:
         with self._lock:
@@ -147,31 +177,43 @@ class JointTargetsWriter:
         client: ModbusClient | None = None
         delay_s = self._backoff_s[0]
         while not self._stop.is_set():
-            if client is None:
-                client = self.endpoint.client()
-                if not client.connect():
-                    self.connected = False
-                    self.last_error = LinkError(f"cannot connect to Modbus {self.endpoint}")
-                    client.close()
+            try:
+                if client is None:
+                    client = self._open()
+                    if client is None:
+                        self._stop.wait(delay_s)
+                        delay_s = min(2 * delay_s, self._backoff_s[1])
+                        continue
+                    delay_s = self._backoff_s[0]
+                self._wake.wait(0.1)
+                self._wake.clear()
+                pending = self._take()
+                if pending is not None and not self._write(client, *pending):
+                    self._drop(client)
                     client = None
-                    self._stop.wait(delay_s)
-                    delay_s = min(2 * delay_s, self._backoff_s[1])
-                    continue
-                self.connected = True
-                delay_s = self._backoff_s[0]
-            self._wake.wait(0.1)
-            self._wake.clear()
-            pending = self._take()
-            if pending is None:
-                continue
-            if not self._write(client, *pending):
-                client.close()
-                client = None
-                self.connected = False
-                self.stats.reconnects += 1
+            except Exception as err:  # whatever happens (even a bug), the thread carries on
+                self.errors += 1
+                self.last_error = err
+                if client is not None:
+                    self._drop(client)
+                    client = None
         if client is not None:
             client.close()
-        self.connected = False
+        self._linked.clear()
+
+    def _open(self) -> ModbusClient | None:
+        client = self.endpoint.client()
+        if client.connect():
+            self._linked.set()
+            return client
+        self.last_error = LinkError(f"cannot connect to Modbus {self.endpoint}")
+        client.close()
+        return None
+
+    def _drop(self, client: ModbusClient) -> None:
+        client.close()
+        self._linked.clear()
+        self.stats.reconnects += 1
 
     def _write(
         self, client: ModbusClient, q: tuple[float, ...], mode: Mode, submitted_ns: int
@@ -185,11 +227,13 @@ class JointTargetsWriter:
             )
         except ModbusException as err:
             self.stats.timeouts += 1
+            self.errors += 1
             self.last_error = LinkError(f"Modbus {self.endpoint}: {err}")
             return False
         if getattr(reply, "isError", lambda: False)():
             code = int(getattr(reply, "exception_code", 0))
             self.stats.exceptions[code] = self.stats.exceptions.get(code, 0) + 1
+            self.errors += 1
             name = ExcCodes(code).name if code in ExcCodes._value2member_map_ else "UNKNOWN"
             self.last_error = ModbusExceptionError(
                 code, name, f"write of joint targets #{self._sequence} to {self.endpoint}"

@@ -11,7 +11,7 @@ from pymodbus.constants import ExcCodes
 from hilrig.drivers.emulated.modbus_server import EmulatedModbusServer
 from hilrig.drivers.joint_targets import JointTargetsWriter, ModbusEndpoint
 from hilrig.drivers.joint_targets_map import JointTargets, Mode, RegisterMap
-from hilrig.errors import ModbusExceptionError
+from hilrig.errors import LinkError, ModbusExceptionError
 
 
 def wait_until(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
@@ -58,7 +58,7 @@ def test_targets_reach_the_robot(server: tuple[EmulatedModbusServer, Received]) 
     srv, received = server
     q = (0.1, -0.2, 0.3, -0.4, 0.5, -0.6)
     with JointTargetsWriter(ModbusEndpoint(port=srv.port)) as writer:
-        assert writer.submit(q)
+        writer.write(q)
         wait_until(lambda: writer.stats.written == 1)
     assert received.targets == [JointTargets(f32(q), 1, Mode.TRACK)]
     assert writer.stats.last_latency_ns > 0
@@ -70,7 +70,7 @@ def test_each_write_carries_a_new_watchdog_count(
     srv, received = server
     with JointTargetsWriter(ModbusEndpoint(port=srv.port)) as writer:
         for n in range(20):
-            writer.submit([0.01 * n] * 6)
+            writer.write([0.01 * n] * 6)
             wait_until(lambda n=n: writer.stats.written == n + 1)
     assert [t.sequence for t in received.targets] == list(range(1, 21))
 
@@ -78,8 +78,8 @@ def test_each_write_carries_a_new_watchdog_count(
 def test_non_finite_targets_are_never_sent(server: tuple[EmulatedModbusServer, Received]) -> None:
     srv, received = server
     with JointTargetsWriter(ModbusEndpoint(port=srv.port)) as writer:
-        assert not writer.submit([float("inf")] + [0.0] * 5)
-        writer.submit([0.0] * 6)
+        writer.write([float("inf")] + [0.0] * 5)
+        writer.write([0.0] * 6)
         wait_until(lambda: writer.stats.written == 1)
     assert writer.stats.refused == 1
     assert len(received.targets) == 1
@@ -93,7 +93,7 @@ def test_modbus_exceptions_are_typed_and_counted(
     with JointTargetsWriter(ModbusEndpoint(port=srv.port)) as writer:
         for _ in range(3):
             seen = writer.stats.written + sum(writer.stats.exceptions.values())
-            writer.submit([0.0] * 6)
+            writer.write([0.0] * 6)
             wait_until(
                 lambda seen=seen: (
                     writer.stats.written + sum(writer.stats.exceptions.values()) > seen
@@ -114,13 +114,23 @@ def test_writer_reconnects_after_the_link_drops() -> None:
     first.start()
     port = first.port
     with JointTargetsWriter(ModbusEndpoint(port=port), backoff_s=(0.005, 0.05)) as writer:
-        writer.submit([0.0] * 6)
+        writer.write([0.0] * 6)
         wait_until(lambda: writer.stats.written == 1)
         first.stop()
-        writer.submit([0.1] * 6)
+        writer.write([0.1] * 6)
         wait_until(lambda: writer.stats.reconnects >= 1)
         with EmulatedModbusServer(received, port=port):
-            wait_until(lambda: writer.connected)
-            writer.submit([0.2] * 6)
+            wait_until(lambda: writer.is_connected)
+            writer.write([0.2] * 6)
             wait_until(lambda: writer.stats.written == 2)
     assert received.targets[-1].q_rad == f32((0.2,) * 6)
+
+
+def test_connect_fails_clearly_when_no_robot_listens() -> None:
+    with EmulatedModbusServer(Received()) as srv:
+        port = srv.port
+    writer = JointTargetsWriter(ModbusEndpoint(port=port))
+    with pytest.raises(LinkError) as err:
+        writer.connect(timeout_s=0.2)
+    assert str(err.value) == f"cannot connect to Modbus rtu+tcp://127.0.0.1:{port} within 0.2 s"
+    assert not writer.is_connected

@@ -6,6 +6,7 @@ from collections.abc import Callable
 from hilrig.drivers.emulated.robot_state_server import EmulatedRobotStateServer
 from hilrig.drivers.robot_state import RobotStateClient
 from hilrig.drivers.robot_state_codec import MAGIC, RobotState, RobotStatus
+from hilrig.errors import LinkError
 
 
 def wait_until(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
@@ -28,13 +29,13 @@ def test_frames_arrive_in_order_with_receive_times() -> None:
         EmulatedRobotStateServer(source) as server,
         RobotStateClient("127.0.0.1", server.port) as client,
     ):
-        wait_until(lambda: client.stats.frames >= 50)
+        wait_until(lambda: client.decoder_stats().frames >= 50)
         latest = client.latest()
         assert latest is not None
         assert latest.state == source(latest.state.sequence)
-        staleness = client.staleness_ns()
-        assert staleness is not None and staleness >= 0
-    assert client.stats.crc_errors == client.stats.bytes_dropped == 0
+        status = client.status()
+        assert status.connected and status.age_ns is not None and status.age_ns >= 0
+    assert client.decoder_stats().crc_errors == client.decoder_stats().bytes_dropped == 0
 
 
 def test_garbage_is_dropped_and_counted_and_the_stream_resumes() -> None:
@@ -42,13 +43,13 @@ def test_garbage_is_dropped_and_counted_and_the_stream_resumes() -> None:
         EmulatedRobotStateServer(source) as server,
         RobotStateClient("127.0.0.1", server.port) as client,
     ):
-        wait_until(lambda: client.stats.frames >= 5)
+        wait_until(lambda: client.decoder_stats().frames >= 5)
         server.inject(b"\xffjunk" + MAGIC + b"\x00" * 10)
-        wait_until(lambda: client.stats.bytes_dropped >= 5)
-        frames = client.stats.frames
-        wait_until(lambda: client.stats.frames >= frames + 5)
-    assert client.stats.bytes_dropped >= 5
-    assert client.last_error is None
+        wait_until(lambda: client.decoder_stats().bytes_dropped >= 5)
+        frames = client.decoder_stats().frames
+        wait_until(lambda: client.decoder_stats().frames >= frames + 5)
+    assert client.decoder_stats().bytes_dropped >= 5
+    assert client.last_error == ""
 
 
 def test_a_stall_makes_the_state_stale_and_counts_the_gap() -> None:
@@ -56,12 +57,13 @@ def test_a_stall_makes_the_state_stale_and_counts_the_gap() -> None:
         EmulatedRobotStateServer(source) as server,
         RobotStateClient("127.0.0.1", server.port) as client,
     ):
-        wait_until(lambda: client.stats.frames >= 5)
+        wait_until(lambda: client.decoder_stats().frames >= 5)
         server.stall(0.2)
-        wait_until(lambda: (client.staleness_ns() or 0) > 50_000_000)
-        gaps = client.stats.sequence_gaps
-        wait_until(lambda: client.stats.sequence_gaps > gaps)
-    assert client.stats.frames_missed >= 1
+        wait_until(lambda: (client.status().age_ns or 0) > 50_000_000)
+        gaps = client.decoder_stats().sequence_gaps
+        wait_until(lambda: client.decoder_stats().sequence_gaps > gaps)
+    assert client.decoder_stats().frames_missed >= 1
+    assert client.stalls == 1
 
 
 def test_the_client_reconnects_after_a_dropped_link() -> None:
@@ -69,10 +71,26 @@ def test_the_client_reconnects_after_a_dropped_link() -> None:
         EmulatedRobotStateServer(source) as server,
         RobotStateClient("127.0.0.1", server.port, backoff_s=(0.005, 0.05)) as client,
     ):
-        wait_until(lambda: client.stats.frames >= 5)
+        wait_until(lambda: client.decoder_stats().frames >= 5)
         server.drop_links()
-        wait_until(lambda: client.reconnects == 1 and client.connected)
-        frames = client.stats.frames
-        wait_until(lambda: client.stats.frames > frames + 5)
+        wait_until(lambda: client.reconnects == 1 and client.is_connected)
+        frames = client.decoder_stats().frames
+        wait_until(lambda: client.decoder_stats().frames > frames + 5)
     assert server.stats.links_dropped == 1
-    assert str(client.last_error).endswith("closed by the robot")
+    assert client.last_error.endswith("closed by the robot")
+    assert client.stalls == 0 and client.errors == 1
+
+
+def test_connect_fails_clearly_when_no_robot_answers() -> None:
+    with EmulatedRobotStateServer(source) as server:
+        port = server.port
+    client = RobotStateClient("127.0.0.1", port)
+    try:
+        client.connect(first_frame_timeout_s=0.2)
+    except LinkError as err:
+        assert str(err).startswith(
+            f"robot state tcp://127.0.0.1:{port}: no valid frame within 0.2 s ("
+        )
+    else:
+        raise AssertionError("no error")
+    assert not client.is_connected

@@ -24,7 +24,8 @@ MAX_BACKLOG_BYTES = 64 * 1024  # per client: beyond this, frames are dropped for
 class ServerStats:
     """Counters since start."""
 
-    frames_sent: int = 0
+    ticks: int = 0  # frames produced (sent to every connected client, if any)
+    frames_sent: int = 0  # frames queued to clients, summed over clients
     frames_dropped: int = 0  # not sent to a slow client
     clients_accepted: int = 0
     links_dropped: int = 0
@@ -107,6 +108,7 @@ class EmulatedRobotStateServer:
                 self._close_all()
             if not stalled:
                 self._send(extra + encode(self._source(sequence)))
+                self.stats.ticks += 1
             sequence += 1
             deadline += self._period_ns
             now = time.monotonic_ns()
