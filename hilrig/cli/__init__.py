@@ -7,8 +7,11 @@ import sys
 
 from rich.console import Console
 
-from hilrig.cli import paper  # noqa: F401  (registers its command)
-from hilrig.cli import recording  # noqa: F401
+from hilrig.cli import (  # noqa: F401  (register their commands)
+    paper,
+    recording,
+    rig,
+)
 from hilrig.cli.app import app
 from hilrig.errors import HilrigError
 

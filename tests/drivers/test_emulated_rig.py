@@ -1,0 +1,128 @@
+"""The whole emulated rig, read and driven through its three real transports."""
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from hilrig.drivers.emulated.rig import HOME_Q_RAD, EmulatedRig, RigConfig
+from hilrig.drivers.emulated.scenarios import HandContact, PaperBody, PaperEndEffector, scenario
+from hilrig.drivers.ft_serial import FtSerial
+from hilrig.drivers.gravity import gravity_wrench
+from hilrig.drivers.joint_targets import JointTargetsWriter, ModbusEndpoint
+from hilrig.drivers.robot_state import RobotStateClient
+from hilrig.drivers.robot_state_codec import RobotStatus
+from hilrig.errors import HilrigError
+from hilrig.paper.profiles import end_effector_force, joint_torque
+from hilrig.robot import RobotModel
+
+
+def wait_until(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError("condition not reached")
+        time.sleep(0.002)
+
+
+def collect(sensor: FtSerial, count: int) -> list:
+    """At least ``count`` samples drained from the sensor."""
+    samples: list = []
+    deadline = time.monotonic() + 10.0
+    while len(samples) < count and time.monotonic() < deadline:
+        samples.extend(sensor.drain())
+        time.sleep(0.01)
+    assert len(samples) >= count, "too few samples"
+    return samples
+
+
+class Constant:
+    """A volunteer pressing with a constant wrench on the sensor."""
+
+    name = "constant"
+
+    def __init__(self, wrench: list[float]) -> None:
+        self.wrench = np.asarray(wrench)
+
+    def wrench_in_sensor(self, t_s: float, pose: np.ndarray) -> np.ndarray:
+        return self.wrench
+
+    def joint_torque(self, t_s: float) -> np.ndarray:
+        return np.array([1.0, -2.0, 0.0, 0.0, 0.0, 0.0])
+
+
+def test_rig_streams_sensor_and_state_and_follows_modbus_targets() -> None:
+    rig = EmulatedRig(Constant([2.0, -1.0, 3.0, 0.0, 0.1, 0.0]))
+    with (
+        rig as endpoints,
+        FtSerial(endpoints.ft_wrist_port) as sensor,
+        RobotStateClient(*endpoints.robot_state) as state,
+        JointTargetsWriter(ModbusEndpoint(*endpoints.modbus)) as writer,
+    ):
+        wait_until(lambda: state.latest() is not None and len(sensor.drain()) > 0)
+        received = state.latest()
+        assert received is not None
+        np.testing.assert_allclose(received.state.q_rad, HOME_Q_RAD, atol=1e-9)
+        assert RobotStatus.HOLDING in received.state.status
+        # the sensor reads the volunteer's wrench + bias + the tool's gravity at the home pose
+        samples = collect(sensor, 300)
+        mean = np.mean([s.wrench_in_sensor for s in samples], axis=0)
+        pose = RobotModel().fk(np.asarray(HOME_Q_RAD))
+        config = RigConfig().ft
+        expected = (
+            np.array([2.0, -1.0, 3.0, 0.0, 0.1, 0.0])
+            + np.asarray(config.bias_in_sensor)
+            + gravity_wrench(config.tool, pose[:3, :3])
+        )
+        np.testing.assert_allclose(mean, expected, atol=0.02)
+        # joint targets over Modbus move the arm; the watchdog count keeps it tracking
+        target = np.asarray(HOME_Q_RAD) + 0.05
+        for _ in range(400):
+            writer.write(target)
+            time.sleep(0.002)
+        moved = state.latest()
+        assert moved is not None
+        assert RobotStatus.TRACKING in moved.state.status
+        np.testing.assert_allclose(moved.state.q_rad, target, atol=0.01)
+        assert abs(moved.state.torque_nm[1] + 2.0) < 0.5  # measured joint torque, with noise
+
+
+def test_paper_scenarios_are_the_paper_profiles() -> None:
+    pose = np.eye(4)
+    for t_s in (3.9, 4.2, 4.5, 5.0, 5.7, 6.1):
+        np.testing.assert_array_equal(
+            PaperEndEffector().wrench_in_sensor(t_s, pose)[:3], end_effector_force(t_s)[0]
+        )
+        np.testing.assert_array_equal(PaperBody().joint_torque(t_s), joint_torque(t_s)[0])
+    repeated = PaperEndEffector(period_s=10.0)
+    assert repeated.wrench_in_sensor(14.5, pose)[0] == end_effector_force(4.5)[0, 0]
+
+
+def test_hand_contact_closes_the_loop_through_the_robots_yielding() -> None:
+    hand = HandContact(period_s=None, damping_n_s_m=0.0)
+    still = np.eye(4)
+    # t = 2.5 s: the hand has moved 0.05 m from 0.05 m short, so it just touches: no force yet
+    assert not hand.wrench_in_sensor(2.5, still).any()
+    # t = 2.7 s: 0.02 m past the tool's start; a tool that stayed put is pushed with k*0.02 N
+    pushed = hand.wrench_in_sensor(2.7, still)
+    np.testing.assert_allclose(pushed[:3], [0.0, 300.0 * 0.02, 0.0], atol=1e-9)
+    # the moment of that force about the sensor origin, applied 0.1 m down the sensor's z
+    np.testing.assert_allclose(pushed[3:], np.cross([0.0, 0.0, 0.1], pushed[:3]), atol=1e-12)
+    # a tool that yielded 0.015 m along the push is pushed with only k*0.005 N
+    yielded = np.eye(4)
+    yielded[1, 3] = 0.015
+    np.testing.assert_allclose(hand.wrench_in_sensor(2.7, yielded)[1], 300.0 * 0.005, atol=1e-9)
+    # a hand never pulls: a tool that yielded beyond the hand gets no force
+    yielded[1, 3] = 0.05
+    assert not hand.wrench_in_sensor(2.7, yielded).any()
+
+
+def test_unknown_scenario_is_refused() -> None:
+    try:
+        scenario("shove")
+    except HilrigError as err:
+        assert str(err) == (
+            "unknown scenario 'shove'; known: hand-contact, paper-body, paper-end-effector"
+        )
+    else:
+        raise AssertionError("no error")
