@@ -1,14 +1,16 @@
 """Load recordings into pandas: one frame per topic, one column per field, at memory speed.
 
-Fixed-layout channels (every hilrig stream) go through :mod:`.columns` - numpy views over the
-decompressed chunks; any other ROS 2 channel is decoded by ``mcap_ros2`` (:mod:`.generic`).
-Topic and time-range selection use the summary's chunk and message indexes, so unselected
-chunks are never decompressed. A truncated or unfinished file loads every complete chunk and
-says what was lost; a corrupt chunk is skipped and reported.
+Fixed-layout channels (every hilrig stream) go through :mod:`.columns` - numpy views over
+batches of decompressed chunks; any other ROS 2 channel is decoded message by message by
+``mcap_ros2`` (:mod:`.generic`) in a second, narrower pass. Topic and time-range selection use
+the summary's chunk and message indexes, so unselected chunks are never decompressed. A
+truncated or unfinished file loads every complete chunk and says what was lost; a corrupt chunk
+is skipped and reported.
 """
 
 from __future__ import annotations
 
+import contextlib
 import mmap
 import os
 import warnings
@@ -22,8 +24,8 @@ import pandas as pd
 
 from hilrig.errors import RecordingError
 from hilrig.recording.cdr import LayoutError, layout_of
-from hilrig.recording.chunks import ChunkError, Entries, indexed_entries, inflated, scan_entries
-from hilrig.recording.columns import INDEX_NAME, FixedChannel, Rows
+from hilrig.recording.chunks import Entries, batches, indexed_entries, scan_entries
+from hilrig.recording.columns import INDEX_NAME, FixedChannel
 from hilrig.recording.generic import DecodeError, RawMessage, decode_frame
 from hilrig.recording.mcap_records import MESSAGE_PREFIX, RECORD_HEADER, Channel, Schema
 from hilrig.recording.msgdef import parse_schema, short_name
@@ -88,86 +90,68 @@ def read(
 ) -> Loaded:
     """:func:`load` for one file, returning the problems instead of warning about them.
 
-    ``progress(done, total)`` is called after each chunk read (a count of chunks).
+    ``progress(done, total)`` is called after each batch of chunks (counted in chunks).
     """
     p, mm = open_mcap(path)
     try:
         index = index_mapped(p, mm)
         return _Load(mm, index, topics, start_ns, end_ns, progress).run()
     finally:
-        mm.close()
+        with contextlib.suppress(BufferError):  # a view still held by an error's traceback
+            mm.close()
 
 
-class _Accumulator:
-    """The messages of one channel, gathered as fixed-layout rows or, failing that, raw."""
+class _Channel:
+    """One selected channel: its fast columns, or - once it proves variable - raw messages."""
 
-    def __init__(self, path: Path, channel: Channel, schema: Schema | None) -> None:
-        self.path, self.channel, self.schema = path, channel, schema
+    def __init__(self, path: Path, channel: Channel, schema: Schema, count: int) -> None:
+        self.path, self.channel, self.schema, self.count = path, channel, schema, count
         self.fixed: FixedChannel | None = None
-        self.rows: list[Rows] = []
-        self.raw: list[RawMessage] | None = None
+        self.generic = False
+        self.raw: list[RawMessage] = []
 
-    def add(self, data: bytes, offsets: npt.NDArray[np.int64]) -> None:
-        if self.raw is None:
-            if self.fixed is None:
-                self.fixed = self._fixed_layout(data, int(offsets[0]))
-            rows = self.fixed.gather(data, offsets) if self.fixed else None
-            if rows is not None:
-                self.rows.append(rows)
-                return
-            self.raw = [m for rows in self.rows for m in _rows_to_raw(rows)]
-            self.rows = []
-        self.raw.extend(_raw_messages(data, offsets))
+    def gather(self, data: npt.NDArray[np.uint8], offsets: npt.NDArray[np.int64]) -> None:
+        if self.generic:
+            return
+        if self.fixed is None:
+            self.fixed = self._fixed_layout(data, int(offsets[0]))
+        if self.fixed is None or not self.fixed.gather(data, offsets):
+            self.generic, self.fixed = True, None  # read again, message by message
 
-    def _fixed_layout(self, data: bytes, offset: int) -> FixedChannel | None:
-        if self.schema is None:
-            return None
-        _, length = RECORD_HEADER.unpack_from(data, offset)
-        message = data[offset + MESSAGE_PREFIX.size : offset + RECORD_HEADER.size + length]
+    def _fixed_layout(self, data: npt.NDArray[np.uint8], offset: int) -> FixedChannel | None:
+        _, length = RECORD_HEADER.unpack_from(data.data, offset)
+        record = data[offset : offset + RECORD_HEADER.size + length].tobytes()
         try:
             defs = parse_schema(self.schema.name, self.schema.data.decode())
-            return FixedChannel(
-                self.channel.id, layout_of(defs, short_name(self.schema.name), message)
-            )
+            message = record[MESSAGE_PREFIX.size :]
+            layout = layout_of(defs, short_name(self.schema.name), message)
         except (LayoutError, RecordingError, UnicodeDecodeError):
             return None
+        return FixedChannel(self.channel.id, layout, record, self.count)
 
     def frame(self) -> pd.DataFrame:
-        if self.raw is None and self.fixed is not None:
-            rows = np.concatenate(self.rows) if len(self.rows) != 1 else self.rows[0]
-            if self.fixed.consistent(rows):
-                return self.fixed.frame(rows)
-            self.raw = _rows_to_raw(rows)
+        if self.fixed is not None:
+            return self.fixed.frame()
         if not self.raw:
             columns = {"publish_time_ns": np.empty(0, np.int64), "sequence": np.empty(0, np.uint32)}
             return pd.DataFrame(columns, index=pd.Index(np.empty(0, np.int64), name=INDEX_NAME))
-        assert self.schema is not None  # channels without a schema are refused up front
         try:
             return decode_frame(self.schema, self.raw)
         except DecodeError as err:
             raise RecordingError(f"{self.path}: topic {self.channel.topic}: {err}") from err
 
 
-def _raw_messages(data: bytes, offsets: npt.NDArray[np.int64]) -> list[RawMessage]:
+def _raw_messages(data: bytes | memoryview, offsets: Iterable[int]) -> list[RawMessage]:
     out: list[RawMessage] = []
-    for offset in offsets.tolist():
+    for offset in offsets:
         _, length, _, sequence, log, publish = MESSAGE_PREFIX.unpack_from(data, offset)
         end = offset + RECORD_HEADER.size + length
-        out.append((log, publish, sequence, data[offset + MESSAGE_PREFIX.size : end]))
-    return out
-
-
-def _rows_to_raw(rows: Rows) -> list[RawMessage]:
-    out: list[RawMessage] = []
-    for row in rows:
-        record = row.tobytes()
-        _, _, _, sequence, log, publish = MESSAGE_PREFIX.unpack_from(record)
-        out.append((log, publish, sequence, record[MESSAGE_PREFIX.size :]))
+        out.append((log, publish, sequence, bytes(data[offset + MESSAGE_PREFIX.size : end])))
     return out
 
 
 class _Load:
-    """One file's load: choose chunks, inflate them, route messages to accumulators."""
+    """One file's load: choose chunks, inflate them in batches, gather each channel's columns."""
 
     def __init__(
         self,
@@ -183,23 +167,28 @@ class _Load:
         self.start = 0 if start_ns is None else start_ns
         self.end = 2**64 if end_ns is None else end_ns
         self.problems: list[str] = []
-        self.accumulators: dict[int, _Accumulator] = {}
+        self.channels: dict[int, _Channel] = {}
         self.refused: set[int] = set()
 
     def run(self) -> Loaded:
-        path = self.index.path
         chunks = self._chunks()
-        for done, (chunk, data) in enumerate(inflated(self.mm, chunks), start=1):
-            if self.progress is not None:
-                self.progress(done, len(chunks))
-            if isinstance(data, ChunkError):
+        entries = {c.offset: self._entries(c) for c in chunks}
+        counts: dict[int, int] = {}
+        for found in entries.values():
+            for cid, (_, offsets) in (found or {}).items():
+                counts[cid] = counts.get(cid, 0) + len(offsets)
+        done = 0
+        for batch in batches(self.mm, chunks):
+            for chunk, err in batch.errors:
                 span = f"{utc_iso(chunk.start_ns)} to {utc_iso(chunk.end_ns)}"
                 self.problems.append(
-                    f"{path}: chunk at byte {chunk.offset} ({span}) skipped: {data}"
+                    f"{self.index.path}: chunk at byte {chunk.offset} ({span}) skipped: {err}"
                 )
-                continue
-            self._route(chunk, data)
-        self._loose_messages()
+            self._gather(batch.data, batch.chunks, entries, counts)
+            done += len(batch.chunks) + len(batch.errors)
+            if self.progress is not None:
+                self.progress(done, len(chunks))
+        self._read_generic(chunks, entries)
         self._check_topics()
         if self.index.truncation is not None:
             self.problems.insert(0, describe_truncation(self.index))
@@ -207,7 +196,7 @@ class _Load:
             self.problems.insert(
                 0, f"{self.index.path}: summary missing or damaged; read by scanning every record"
             )
-        frames = {a.channel.topic: a.frame() for a in self.accumulators.values()}
+        frames = {c.channel.topic: c.frame() for c in self.channels.values()}
         return Loaded(dict(sorted(frames.items())), tuple(self.problems), self.index)
 
     def _chunks(self) -> list[ChunkInfo]:
@@ -230,25 +219,64 @@ class _Load:
     def _selected(self, channel: Channel) -> bool:
         return self.topics is None or channel.topic in self.topics
 
-    def _route(self, chunk: ChunkInfo, data: bytes) -> None:
-        entries: Entries | None = indexed_entries(self.mm, chunk)
-        if entries is None or not set(entries) <= set(self.index.channels):
-            entries, definitions = scan_entries(data)
-            add_definitions(self.index, data, definitions)
-        for channel_id, (times, offsets) in entries.items():
-            accumulator = self._accumulator(channel_id)
-            if accumulator is None:
+    def _entries(self, chunk: ChunkInfo) -> Entries | None:
+        """Selected channels' messages in ``chunk`` within the time range, from its index;
+        None when the chunk must be scanned after decompression."""
+        found = indexed_entries(self.mm, chunk)
+        if found is None or not set(found) <= set(self.index.channels):
+            return None
+        inside = self.start <= chunk.start_ns and chunk.end_ns < self.end
+        return self._filtered(found, inside=inside)
+
+    def _filtered(self, found: Entries, *, inside: bool = False) -> Entries:
+        """The selected channels' entries; those in the time range unless ``inside`` says the
+        whole chunk is."""
+        out: Entries = {}
+        for cid, (times, offsets) in found.items():
+            channel = self.index.channels.get(cid)
+            if channel is None or not self._selected(channel) or cid in self.refused:
+                continue
+            if inside:
+                out[cid] = (times, offsets)
                 continue
             keep = (times >= self.start) & (times < self.end)
-            if not keep.all():
-                offsets = offsets[keep]
-            if len(offsets):
-                accumulator.add(data, offsets)
+            out[cid] = (times, offsets) if keep.all() else (times[keep], offsets[keep])
+        return out
 
-    def _accumulator(self, channel_id: int) -> _Accumulator | None:
-        accumulator = self.accumulators.get(channel_id)
-        if accumulator is not None or channel_id in self.refused:
-            return accumulator
+    def _scanned(self, data: npt.NDArray[np.uint8], start: int, size: int) -> Entries:
+        view = data.data[start : start + size]
+        found, definitions = scan_entries(view)
+        add_definitions(self.index, bytes(view), definitions)
+        return self._filtered(found)
+
+    def _gather(
+        self,
+        data: npt.NDArray[np.uint8],
+        chunks: list[tuple[ChunkInfo, int]],
+        entries: dict[int, Entries | None],
+        counts: dict[int, int],
+    ) -> None:
+        offsets: dict[int, list[npt.NDArray[np.int64]]] = {}
+        for chunk, base in chunks:
+            found = entries[chunk.offset]
+            if found is None:
+                found = entries[chunk.offset] = self._scanned(data, base, chunk.uncompressed_size)
+            for cid, (_, positions) in found.items():
+                if len(positions):
+                    offsets.setdefault(cid, []).append(positions + base)
+        for cid, parts in offsets.items():
+            channel = self._channel(cid, counts.get(cid, 0))
+            if channel is not None:
+                channel.gather(data, np.concatenate(parts) if len(parts) > 1 else parts[0])
+
+    def _channel(self, channel_id: int, count: int = 0) -> _Channel | None:
+        """The selected channel ``channel_id`` (created on first use), None if not selected.
+
+        Channels that are not ROS 2 CDR are refused: an error if asked for by topic, else a
+        reported skip."""
+        existing = self.channels.get(channel_id)
+        if existing is not None or channel_id in self.refused:
+            return existing
         channel = self.index.channels.get(channel_id)
         if channel is None or not self._selected(channel):
             return None
@@ -258,10 +286,9 @@ class _Load:
         elif channel.message_encoding != MESSAGE_ENCODING:
             problem = f"message encoding {channel.message_encoding!r}"
         else:
-            accumulator = self.accumulators[channel_id] = _Accumulator(
-                self.index.path, channel, schema
-            )
-            return accumulator
+            created = _Channel(self.index.path, channel, schema, count)
+            self.channels[channel_id] = created
+            return created
         line = f"{self.index.path}: topic {channel.topic} has {problem}, not ros2msg/cdr"
         if self.topics is not None:
             raise RecordingError(line)
@@ -269,24 +296,45 @@ class _Load:
         self.refused.add(channel_id)
         return None
 
-    def _loose_messages(self) -> None:
+    def _read_generic(self, chunks: list[ChunkInfo], entries: dict[int, Entries | None]) -> None:
+        """Second pass, message by message, for channels without a fixed layout."""
+        loose = self._loose_messages()
+        generic = {cid for cid, c in self.channels.items() if c.generic or cid in loose}
+        if not generic:
+            return
+        needed = [c for c in chunks if not generic.isdisjoint(entries.get(c.offset) or {})]
+        for batch in batches(self.mm, needed):
+            for chunk, base in batch.chunks:
+                for cid, (_, positions) in (entries[chunk.offset] or {}).items():
+                    if cid in generic:
+                        found = _raw_messages(batch.data.data, (positions + base).tolist())
+                        self.channels[cid].raw.extend(found)
+        for cid, messages in loose.items():
+            self.channels[cid].raw.extend(messages)
+        for cid in generic:
+            self.channels[cid].generic, self.channels[cid].fixed = True, None
+
+    def _loose_messages(self) -> dict[int, list[RawMessage]]:
+        """Selected messages written outside chunks (rare: unchunked files)."""
+        loose: dict[int, list[RawMessage]] = {}
         for offset in self.index.loose_messages:
-            _, length = RECORD_HEADER.unpack_from(self.mm, offset)
-            record = self.mm[offset : offset + RECORD_HEADER.size + length]
-            channel_id, _, log, _ = MESSAGE_PREFIX.unpack_from(record)[2:6]
-            accumulator = self._accumulator(channel_id)
-            if accumulator is not None and self.start <= log < self.end:
-                accumulator.add(record, np.zeros(1, dtype=np.int64))
+            (message,) = _raw_messages(memoryview(self.mm), [offset])
+            channel_id = MESSAGE_PREFIX.unpack_from(self.mm, offset)[2]
+            if self._channel(channel_id) is not None and self.start <= message[0] < self.end:
+                loose.setdefault(channel_id, []).append(message)
+        return loose
 
     def _check_topics(self) -> None:
+        """Unknown topics are an error, and so is a file with channels but none readable."""
         known = {c.topic for c in self.index.channels.values()}
         missing = sorted((self.topics or set()) - known)
         if missing:
             have = ", ".join(sorted(known))
             raise RecordingError(f"{self.index.path}: no topic {', '.join(missing)} (has {have})")
-        for cid, channel in self.index.channels.items():
-            if self._selected(channel) and cid not in self.refused:
-                self._accumulator(cid)
+        for cid in self.index.channels:
+            self._channel(cid)
+        if self.refused and not self.channels:
+            raise RecordingError(self.problems[-1].removesuffix("; skipped") + "; nothing to read")
 
 
 def describe_truncation(index: FileIndex) -> str:

@@ -20,7 +20,7 @@ import numpy as np
 
 from hilrig.errors import RecordingError
 from hilrig.recording import mcap_records as rec
-from hilrig.recording.chunks import ChunkError, Entries, indexed_entries, inflated, scan_entries
+from hilrig.recording.chunks import ChunkError, Entries, indexed_entries, inflate, scan_entries
 from hilrig.recording.reader import describe_truncation
 from hilrig.recording.scan import (
     ChunkInfo,
@@ -115,10 +115,12 @@ class _Rewriter:
         for channel in index.channels.values():
             self.write(channel.encode())
         self._copy_metadata_and_attachments()
-        for chunk, data in inflated(self.mm, index.chunks):
-            if isinstance(data, ChunkError):
+        for chunk in index.chunks:
+            try:
+                data = inflate(self.mm, chunk)
+            except ChunkError as err:
                 span = f"{utc_iso(chunk.start_ns)} to {utc_iso(chunk.end_ns)}"
-                self.problems.append(f"dropped the chunk at byte {chunk.offset} ({span}): {data}")
+                self.problems.append(f"dropped the chunk at byte {chunk.offset} ({span}): {err}")
                 continue
             self._copy_chunk(chunk, data)
         self._copy_loose_messages()

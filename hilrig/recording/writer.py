@@ -109,7 +109,8 @@ class SessionWriter:
         self._attachments = list(attachments)
         self._span_ns = round(chunk_span_s * 1e9)
         self._max_chunk_bytes = max_chunk_bytes
-        self._compressor = zstandard.ZstdCompressor(level=compression_level)
+        # The frame checksum lets readers verify a chunk while inflating it (see chunks.py).
+        self._compressor = zstandard.ZstdCompressor(level=compression_level, write_checksum=True)
         self._split = split
         self._schemas: dict[MessageType, rec.Schema] = {}
         self._channels: dict[str, _Channel] = {}
