@@ -3,21 +3,44 @@
 from __future__ import annotations
 
 import enum
+import functools
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, ParamSpec, TypeVar
 
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
+from rich.text import Text
 
 from hilrig.cli.app import app
+from hilrig.errors import HilrigError
 from hilrig.recording import export as export_recording
 from hilrig.recording import inspect, recover
 from hilrig.recording.info import FileInfo
 from hilrig.recording.session import utc_iso
 
 _FILE = Annotated[Path, typer.Argument(help="An MCAP recording.", show_default=False)]
+
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+def _one_line_errors(command: Callable[P, R]) -> Callable[P, R]:
+    """Print an expected failure as exactly one line (never wrapped, no markup) and exit 2."""
+
+    @functools.wraps(command)
+    def run(*args: P.args, **kwargs: P.kwargs) -> R:
+        try:
+            return command(*args, **kwargs)
+        except HilrigError as err:
+            line = Text.assemble(("error: ", "bold red"), str(err))
+            Console(stderr=True, soft_wrap=True).print(line)
+            raise typer.Exit(2) from err
+
+    return run
 
 
 class ExportFormat(enum.StrEnum):
@@ -27,10 +50,11 @@ class ExportFormat(enum.StrEnum):
 
 def _problems(console: Console, problems: tuple[str, ...]) -> None:
     for line in problems:
-        console.print(f"[yellow]warning:[/] {line}", highlight=False, markup=True, soft_wrap=True)
+        console.print(Text.assemble(("warning: ", "yellow"), line), soft_wrap=True)
 
 
 @app.command("info")
+@_one_line_errors
 def info_command(
     file: _FILE,
     check: Annotated[
@@ -83,6 +107,7 @@ def _print_info(console: Console, info: FileInfo) -> None:
 
 
 @app.command("recover")
+@_one_line_errors
 def recover_command(
     file: _FILE,
     out: Annotated[Path, typer.Option("-o", "--out", help="Where to write the repaired file.")],
@@ -95,6 +120,7 @@ def recover_command(
 
 
 @app.command("export")
+@_one_line_errors
 def export_command(
     file: _FILE,
     out: Annotated[Path, typer.Option("--out", help="Directory for one table per topic.")],

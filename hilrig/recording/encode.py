@@ -111,6 +111,10 @@ class ChannelEncoder:
         except struct.error as err:
             raise RecordingError(f"channel {self.spec.topic}: cannot encode sample: {err}") from err
 
+    def check(self, sample: Sample) -> None:
+        """Raise RecordingError if ``sample`` does not fit the channel (type, array lengths)."""
+        self._values(sample)
+
     def _event_packer(self, sample: Sample) -> _Packer:
         assert isinstance(sample, EventRecord)  # checked by _value_function
         shape = {"source": sample.source, "detail": sample.detail, "axis": sample.axis}

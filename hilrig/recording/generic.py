@@ -7,12 +7,13 @@ decoded messages are flattened into the same columns the fast path gives - dotte
 
 from __future__ import annotations
 
+import contextlib
+import io
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 import pandas as pd
-from mcap.exceptions import McapError
 from mcap.records import Schema as McapSchema
 from mcap_ros2.decoder import DecoderFactory
 
@@ -36,8 +37,10 @@ def decode_frame(schema: Schema, messages: Sequence[RawMessage]) -> pd.DataFrame
     """
     mcap_schema = McapSchema(schema.id, schema.data, schema.encoding, schema.name)
     try:
-        decoder = DecoderFactory().decoder_for("cdr", mcap_schema)
-    except (McapError, ValueError, IndexError, NotImplementedError) as err:
+        parse_schema(schema.name, schema.data.decode())
+        with contextlib.redirect_stderr(io.StringIO()):  # the parser prints what it raises
+            decoder = DecoderFactory().decoder_for("cdr", mcap_schema)
+    except Exception as err:  # the vendored rosidl parser has exception types of its own
         raise DecodeError(f"schema {schema.name} cannot be parsed ({err})") from err
     if decoder is None:
         raise DecodeError(f"schema {schema.name} has encoding {schema.encoding!r}, not ros2msg")

@@ -302,10 +302,11 @@ def _scan(mm: mmap.mmap, pos: int, index: FileIndex) -> None:
             break
         c = _Cursor(mm, pos + RECORD_HEADER.size, end)
         try:
-            if opcode == Op.CHUNK:
-                _close_chunk(index, pending_index)
-                index.chunks.append(parse_chunk_head(c, pos, end - pos))
+            if opcode != Op.MESSAGE_INDEX:
+                _close_chunk(index, pending_index)  # the chunk's message indexes are complete
                 pending_index = {}
+            if opcode == Op.CHUNK:
+                index.chunks.append(parse_chunk_head(c, pos, end - pos))
             elif opcode == Op.MESSAGE_INDEX and index.chunks:
                 pending_index[c.u("<H")] = pos
             elif opcode == Op.SCHEMA:
@@ -319,8 +320,10 @@ def _scan(mm: mmap.mmap, pos: int, index: FileIndex) -> None:
             elif opcode == Op.ATTACHMENT:
                 log_time, create_time = c.take("<QQ")
                 name, media_type = c.string(), c.string()
-                size = c.u("<Q")
-                ref = AttachmentRef(pos, end - pos, name, media_type, log_time, create_time, size)
+                data_size = c.u("<Q")
+                ref = AttachmentRef(
+                    pos, end - pos, name, media_type, log_time, create_time, data_size
+                )
                 index.attachments.append(ref)
             elif opcode == Op.MESSAGE:
                 index.loose_messages.append(pos)
@@ -330,7 +333,7 @@ def _scan(mm: mmap.mmap, pos: int, index: FileIndex) -> None:
             _close_chunk(index, pending_index)
             return  # the data section ended cleanly; only the summary was unusable
         pos = end
-    _close_chunk(index, pending_index)
+    # The last chunk's message indexes may be cut short: its messages are found by scanning.
     index.truncation = _truncation(mm, pos)
 
 

@@ -164,6 +164,7 @@ class SessionWriter:
             publish_ns = getattr(sample, "device_t_ns", None)
             sequence = getattr(sample, "device_seq", None)
             if publish_ns is None or sequence is None:
+                channel.encoder.check(sample)  # a sample of the wrong type says so first
                 raise RecordingError(f"{topic}: samples need device_t_ns and device_seq")
             sequence &= _U32
         else:
