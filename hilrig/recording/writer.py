@@ -63,13 +63,17 @@ def part_path(path: Path, part: int) -> Path:
 
 
 class _Channel:
-    __slots__ = ("counter", "device_clock", "encoder", "record")
+    """A registered channel: its encoder, sequence counter, and the open chunk's index of it."""
+
+    __slots__ = ("count", "counter", "device_clock", "encoder", "index", "record")
 
     def __init__(self, record: rec.Channel, encoder: ChannelEncoder, device_clock: bool) -> None:
         self.record = record
         self.encoder = encoder
         self.device_clock = device_clock
-        self.counter = 0
+        self.counter = 0  # the MCAP sequence of channels without a device sequence
+        self.count = 0  # messages in the current file
+        self.index = array("Q")  # log time, offset pairs of the open chunk
 
 
 class SessionWriter:
@@ -120,8 +124,6 @@ class SessionWriter:
         # Per part (reset by _open_part): bytes written, open chunk, indexes and counts.
         self._pos = 0
         self._buf = bytearray()
-        self._index: dict[int, array[int]] = {}
-        self._counts: dict[int, int] = {}
         self._chunk_start = self._chunk_end = 0
         self._part_start, self._part_end = 2**64 - 1, 0
         self._chunk_indexes: list[rec.ChunkIndex] = []
@@ -172,20 +174,21 @@ class SessionWriter:
             sequence = channel.counter & _U32
             channel.counter += 1
         data = channel.encoder.encode(sample, sequence, log_ns, publish_ns)
-        if not self._buf:
+        buf = self._buf
+        if not buf:
             self._chunk_start = self._chunk_end = log_ns
-        elif log_ns - self._chunk_start >= self._span_ns or len(self._buf) > self._max_chunk_bytes:
+        elif log_ns - self._chunk_start >= self._span_ns or len(buf) > self._max_chunk_bytes:
             self.flush()
+            buf = self._buf
             self._chunk_start = self._chunk_end = log_ns
-        index = self._index.get(channel.record.id)
-        if index is None:
-            index = self._index[channel.record.id] = array("Q")
-        index.append(log_ns)
-        index.append(len(self._buf))
-        self._buf += data
-        self._chunk_start = min(self._chunk_start, log_ns)
-        self._chunk_end = max(self._chunk_end, log_ns)
-        self._counts[channel.record.id] = self._counts.get(channel.record.id, 0) + 1
+        elif log_ns > self._chunk_end:
+            self._chunk_end = log_ns
+        elif log_ns < self._chunk_start:
+            self._chunk_start = log_ns
+        channel.index.append(log_ns)
+        channel.index.append(len(buf))
+        buf += data
+        channel.count += 1
 
     def flush(self) -> None:
         """Compress and write the open chunk now and hand it to the operating system."""
@@ -208,9 +211,11 @@ class SessionWriter:
         chunk_length = self._pos - chunk_offset
         index_offsets: dict[int, int] = {}
         index_start = self._pos
-        for channel_id, entries in self._index.items():
-            index_offsets[channel_id] = self._pos
-            self._write(rec.message_index(channel_id, entries.tobytes()))
+        for channel in self._channels.values():
+            if channel.index:
+                index_offsets[channel.record.id] = self._pos
+                self._write(rec.message_index(channel.record.id, channel.index.tobytes()))
+                channel.index = array("Q")
         self._chunk_indexes.append(
             rec.ChunkIndex(
                 self._chunk_start,
@@ -227,7 +232,6 @@ class SessionWriter:
         self._part_start = min(self._part_start, self._chunk_start)
         self._part_end = max(self._part_end, self._chunk_end)
         self._buf = bytearray()
-        self._index = {}
         assert self._file is not None
         self._file.flush()
         if self._split_due():
@@ -274,8 +278,8 @@ class SessionWriter:
         self.paths.append(path)
         self._pos = 0
         self._buf = bytearray()
-        self._index = {}
-        self._counts = {}
+        for channel in self._channels.values():
+            channel.count = 0
         self._part_start, self._part_end = 2**64 - 1, 0
         self._chunk_indexes = []
         self._metadata_indexes = []
@@ -311,7 +315,7 @@ class SessionWriter:
 
     def _finish_part(self) -> None:
         assert self._file is not None
-        counts = self._counts
+        counts = {c.record.id: c.count for c in self._channels.values()}
         statistics = rec.Statistics(
             message_count=sum(counts.values()),
             schema_count=len(self._schemas),
@@ -319,11 +323,9 @@ class SessionWriter:
             attachment_count=len(self._attachments),
             metadata_count=len(self._metadata_indexes),
             chunk_count=len(self._chunk_indexes),
-            message_start_time=self._part_start if counts else 0,
-            message_end_time=self._part_end if counts else 0,
-            channel_message_counts={
-                c.record.id: counts.get(c.record.id, 0) for c in self._channels.values()
-            },
+            message_start_time=self._part_start if any(counts.values()) else 0,
+            message_end_time=self._part_end if any(counts.values()) else 0,
+            channel_message_counts=counts,
         )
         self._write(
             rec.data_end_and_summary(

@@ -86,8 +86,12 @@ def test_time_range_and_topics_select_like_the_mcap_reader(small_session: Writte
     with open(small_session.path, "rb") as f:
         reader = make_reader(f)
         for topic in topics:
-            times = [m.log_time for _, _, m in reader.iter_messages(topics=[topic],
-                     starting_at=start, ending_before=end)]  # fmt: skip
+            times = [
+                m.log_time
+                for _, _, m in reader.iter_messages(
+                    topics=[topic], starting_at=start, ending_before=end
+                )
+            ]
             assert frames[topic].index.tolist() == times
 
 

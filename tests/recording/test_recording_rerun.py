@@ -21,8 +21,11 @@ RERUN = str(Path(sys.executable).parent / "rerun")
 def converted(small_session: Written, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """Entity path -> its chunks' record batches, concatenated per column name."""
     rrd = tmp_path_factory.mktemp("rrd") / "small.rrd"
-    subprocess.run([RERUN, "mcap", "convert", str(small_session.path), "-o", str(rrd)],
-                   check=True, capture_output=True)  # fmt: skip
+    subprocess.run(
+        [RERUN, "mcap", "convert", str(small_session.path), "-o", str(rrd)],
+        check=True,
+        capture_output=True,
+    )
     columns: dict[str, dict[str, list[Any]]] = {}
     for chunk in RrdReader(rrd).stream().to_chunks():
         batch = chunk.to_record_batch()
@@ -59,8 +62,11 @@ def test_topic_is_decoded(converted: dict[str, Any], entity: str, component: str
 def test_decoded_values_are_the_written_ones(
     converted: dict[str, Any], small_session: Written
 ) -> None:
-    messages = [m for rows in converted["/ft/wrist"]["geometry_msgs.msg.WrenchStamped:message"]
-                for m in rows]  # fmt: skip
+    messages = [
+        m
+        for rows in converted["/ft/wrist"]["geometry_msgs.msg.WrenchStamped:message"]
+        for m in rows
+    ]
     written = [s for s in small_session.of("/ft/wrist") if isinstance(s, WrenchSample)]
     assert len(messages) == len(written)
     first = messages[0]["wrench"]["force"]
@@ -76,6 +82,10 @@ def test_session_metadata_reaches_rerun(converted: dict[str, Any]) -> None:
 
 
 def test_rerun_check_finds_no_issue(small_session: Written) -> None:
-    done = subprocess.run([RERUN, "mcap", "check", str(small_session.path)], capture_output=True,
-                          text=True, check=False)  # fmt: skip
+    done = subprocess.run(
+        [RERUN, "mcap", "check", str(small_session.path)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert done.returncode == 0, done.stdout + done.stderr

@@ -104,7 +104,11 @@ def test_killed_writer_loses_at_most_half_a_second(tmp_path: Path, ticks: int) -
     assert last_written_ns - kept <= 500_000_000
     repaired = tmp_path / "repaired.mcap"
     cli = [sys.executable, "-c", "from hilrig.cli import main; main()"]
-    done = subprocess.run([*cli, "recover", str(path), "-o", str(repaired)], capture_output=True,
-                          text=True, check=True)  # fmt: skip
+    done = subprocess.run(
+        [*cli, "recover", str(path), "-o", str(repaired)],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     assert "kept" in done.stdout and "unfinished recording" in done.stdout
     assert official_count(repaired) == sum(len(frame) for frame in loaded.frames.values()) > 0

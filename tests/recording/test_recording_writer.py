@@ -168,6 +168,7 @@ def test_any_axis_set_round_trips_through_both_readers(
         expected = [getattr(t, field) for t in ticks]
         assert [list(getattr(d, field)) for d in decoded] == expected
         assert np.array_equal(frame_[[f"{field}_{i}" for i in range(n)]], expected)
-    assert np.array_equal(frame_[[f"contact_state_{i}" for i in range(n)]],
-                          [t.contact_state for t in ticks])  # fmt: skip
+    assert np.array_equal(
+        frame_[[f"contact_state_{i}" for i in range(n)]], [t.contact_state for t in ticks]
+    )
     assert [frame_[f"axis_names_{i}"].iloc[0] for i in range(n)] == axes
