@@ -20,6 +20,7 @@ from hilrig.recording.samples import (
     LoopTiming,
     PoseSample,
     Sample,
+    TextSample,
     WrenchSample,
 )
 from hilrig.recording.schema import TOPICS, ChannelSpec, MessageType, default_channels
@@ -46,6 +47,7 @@ __all__ = [
     "SessionInfo",
     "SessionWriter",
     "SplitPolicy",
+    "TextSample",
     "TopicInfo",
     "WrenchSample",
     "default_channels",

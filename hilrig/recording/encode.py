@@ -24,6 +24,7 @@ from hilrig.recording.samples import (
     LoopTiming,
     PoseSample,
     Sample,
+    TextSample,
     WrenchSample,
 )
 from hilrig.recording.schema import JOINT_ARRAYS, ChannelSpec, MessageType
@@ -42,6 +43,7 @@ _STRUCT_CODES = {
     "<f8": "d",
 }
 _NS_PER_S = 1_000_000_000
+_FREE_TEXT = (MessageType.EVENT, MessageType.STRING)  # their layout changes with the text
 
 Values = tuple[float, ...]
 
@@ -98,7 +100,7 @@ class ChannelEncoder:
         self.root = short_name(spec.type.value)
         self._values = _value_function(spec)
         self._packer: _Packer | None = None
-        if spec.type is not MessageType.EVENT:
+        if spec.type not in _FREE_TEXT:
             message = prototype(self.defs, self.root, spec.shape)
             self._packer = _Packer(channel_id, message, layout_of(self.defs, self.root, message))
 
@@ -109,7 +111,7 @@ class ChannelEncoder:
         values out of range of their fields).
         """
         values = divmod(log_ns, _NS_PER_S) + self._values(sample)
-        packer = self._packer or self._event_packer(sample)
+        packer = self._packer or self._text_packer(sample)
         try:
             return packer.pack(sequence, log_ns, publish_ns, values)
         except struct.error as err:
@@ -119,9 +121,13 @@ class ChannelEncoder:
         """Raise RecordingError if ``sample`` does not fit the channel (type, array lengths)."""
         self._values(sample)
 
-    def _event_packer(self, sample: Sample) -> _Packer:
-        assert isinstance(sample, EventRecord)  # checked by _value_function
-        shape = {"source": sample.source, "detail": sample.detail, "axis": sample.axis}
+    def _text_packer(self, sample: Sample) -> _Packer:
+        """A packer for this message's own text (events and strings change length)."""
+        if isinstance(sample, TextSample):
+            shape: dict[str, object] = {"data": sample.text}
+        else:
+            assert isinstance(sample, EventRecord)  # checked by _value_function
+            shape = {"source": sample.source, "detail": sample.detail, "axis": sample.axis}
         message = prototype(self.defs, self.root, shape)
         return _Packer(self.channel_id, message, layout_of(self.defs, self.root, message))
 
@@ -176,6 +182,11 @@ def _value_function(spec: ChannelSpec) -> Callable[[Sample], Values]:
             raise wrong(s, EventRecord)
         return (int(s.kind), s.value)
 
+    def text(s: Sample) -> Values:
+        if not isinstance(s, TextSample):
+            raise wrong(s, TextSample)
+        return ()
+
     def loop(s: Sample) -> Values:
         if not isinstance(s, LoopTiming):
             raise wrong(s, LoopTiming)
@@ -188,5 +199,6 @@ def _value_function(spec: ChannelSpec) -> Callable[[Sample], Values]:
         MessageType.CONTROLLER_STATE: controller,
         MessageType.EVENT: event,
         MessageType.LOOP_DIAGNOSTICS: loop,
+        MessageType.STRING: text,
     }
     return functions[spec.type]

@@ -115,4 +115,20 @@ class LoopTiming:
     queue_drops: int
 
 
-Sample = WrenchSample | JointSample | PoseSample | ControllerSample | EventRecord | LoopTiming
+@dataclass(frozen=True, slots=True)
+class TextSample:
+    """A text message (std_msgs/msg/String), e.g. the URDF on ``/robot_description``."""
+
+    t_ns: int
+    text: str
+
+
+Sample = (
+    WrenchSample
+    | JointSample
+    | PoseSample
+    | ControllerSample
+    | EventRecord
+    | LoopTiming
+    | TextSample
+)

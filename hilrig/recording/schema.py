@@ -21,6 +21,7 @@ from hilrig.recording.samples import (
     LoopTiming,
     PoseSample,
     Sample,
+    TextSample,
     WrenchSample,
 )
 
@@ -38,6 +39,7 @@ class MessageType(enum.Enum):
     CONTROLLER_STATE = "hilrig_msgs/msg/ControllerState"
     EVENT = "hilrig_msgs/msg/Event"
     LOOP_DIAGNOSTICS = "hilrig_msgs/msg/LoopDiagnostics"
+    STRING = "std_msgs/msg/String"
 
 
 SAMPLE_TYPES: Mapping[MessageType, type[Sample]] = {
@@ -47,10 +49,12 @@ SAMPLE_TYPES: Mapping[MessageType, type[Sample]] = {
     MessageType.CONTROLLER_STATE: ControllerSample,
     MessageType.EVENT: EventRecord,
     MessageType.LOOP_DIAGNOSTICS: LoopTiming,
+    MessageType.STRING: TextSample,
 }
 
-#: The topics of DESIGN.md and their types.
+#: The topics of DESIGN.md and their types (plus the URDF, as ROS publishes it).
 TOPICS: Mapping[str, MessageType] = {
+    "/robot_description": MessageType.STRING,
     "/ft/wrist": MessageType.WRENCH,
     "/ft/base": MessageType.WRENCH,
     "/joint_states": MessageType.JOINT_STATE,
@@ -79,9 +83,9 @@ CONTROLLER_ARRAYS = (
 #: ``rosbag2`` metadata record the writer adds, and docs/recording-format.md).
 OFFERED_QOS_PROFILES = """\
 - history: 1
-  depth: 10
+  depth: {depth}
   reliability: 1
-  durability: 2
+  durability: {durability}
   deadline:
     sec: 0
     nsec: 0
@@ -105,6 +109,8 @@ class ChannelSpec:
     commanded joint targets fill only ``position``). ``controller``: the control law's name.
     ``device_clock``: the device stamps its samples, whose ``device_t_ns`` and ``device_seq``
     become the MCAP publish time and sequence (otherwise: the log time and a counter).
+    ``latched``: offered as transient local, like ``/robot_description``, so that a replay
+    hands the last message to late subscribers.
     """
 
     topic: str
@@ -114,6 +120,7 @@ class ChannelSpec:
     arrays: tuple[str, ...] = JOINT_ARRAYS
     controller: str = ""
     device_clock: bool = False
+    latched: bool = False
 
     def __post_init__(self) -> None:
         if not self.topic.startswith("/"):
@@ -141,8 +148,11 @@ class ChannelSpec:
     @property
     def metadata(self) -> dict[str, str]:
         """Channel metadata: rosbag2's ``offered_qos_profiles`` and where the clocks went."""
+        qos = OFFERED_QOS_PROFILES.format(
+            depth=1 if self.latched else 10, durability=1 if self.latched else 2
+        )
         return {
-            "offered_qos_profiles": OFFERED_QOS_PROFILES,
+            "offered_qos_profiles": qos,
             "hilrig.publish_time": "device_time" if self.device_clock else "log_time",
             "hilrig.sequence": "device_sequence" if self.device_clock else "channel_counter",
         }

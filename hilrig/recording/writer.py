@@ -16,7 +16,7 @@ import os
 import zlib
 from array import array
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from types import TracebackType
 from typing import BinaryIO
@@ -28,7 +28,7 @@ from hilrig.errors import RecordingError
 from hilrig.recording import mcap_records as rec
 from hilrig.recording.encode import ChannelEncoder
 from hilrig.recording.msgdef import full_definition
-from hilrig.recording.samples import Sample
+from hilrig.recording.samples import Sample, TextSample
 from hilrig.recording.schema import (
     MESSAGE_ENCODING,
     PROFILE,
@@ -44,6 +44,7 @@ from hilrig.recording.session import (
 )
 
 LIBRARY = f"hilrig/{__version__}"
+ROBOT_DESCRIPTION = ChannelSpec("/robot_description", MessageType.STRING, latched=True)
 _U32 = 0xFFFFFFFF
 
 
@@ -80,8 +81,10 @@ class SessionWriter:
     """Write one session to ``path`` (or to numbered parts of it when ``split`` is given).
 
     ``session`` becomes the ``session`` metadata record, ``calibration`` the ``calibration``
-    record; ``attachments`` (config, URDF, scenario) are stored as MCAP attachments; every part
-    of a split session repeats all three. Refuses to overwrite an existing file.
+    record; ``attachments`` (config, scenario) are stored as MCAP attachments. ``urdf`` (the
+    robot model's XML) is attached as ``robot.urdf`` and published once on the latched
+    ``/robot_description`` topic, where ROS tools, Foxglove and Rerun look for it. Every part
+    of a split session repeats all of these. Refuses to overwrite an existing file.
     Raises RecordingError for an existing output, an unknown topic or a sample that does not fit.
     """
 
@@ -93,6 +96,7 @@ class SessionWriter:
         channels: Iterable[ChannelSpec] = (),
         calibration: Mapping[str, object] | None = None,
         attachments: Sequence[rec.Attachment] = (),
+        urdf: str | None = None,
         chunk_span_s: float = 0.25,
         max_chunk_bytes: int = 8 << 20,
         compression_level: int = 3,
@@ -111,6 +115,10 @@ class SessionWriter:
         # An empty serialized_metadata makes rosbag2 read the numeric QoS policies.
         self._metadata.append(rec.Metadata("rosbag2", {"serialized_metadata": ""}))
         self._attachments = list(attachments)
+        self._urdf = urdf
+        if urdf is not None:
+            robot = rec.Attachment("robot.urdf", "application/xml", urdf.encode())
+            self._attachments.append(replace(robot, log_time=session.start_utc_ns))
         self._span_ns = round(chunk_span_s * 1e9)
         self._max_chunk_bytes = max_chunk_bytes
         # The frame checksum lets readers verify a chunk while inflating it (see chunks.py).
@@ -132,6 +140,9 @@ class SessionWriter:
         self._open_part()
         for spec in channels:
             self.add_channel(spec)
+        if urdf is not None:
+            self.add_channel(ROBOT_DESCRIPTION)
+            self._describe_robot(session.start_monotonic_ns)
 
     # -- public API -------------------------------------------------------------------------
 
@@ -175,11 +186,12 @@ class SessionWriter:
             channel.counter += 1
         data = channel.encoder.encode(sample, sequence, log_ns, publish_ns)
         buf = self._buf
-        if not buf:
-            self._chunk_start = self._chunk_end = log_ns
-        elif log_ns - self._chunk_start >= self._span_ns or len(buf) > self._max_chunk_bytes:
+        if buf and (
+            log_ns - self._chunk_start >= self._span_ns or len(buf) > self._max_chunk_bytes
+        ):
             self.flush()
-            buf = self._buf
+            buf = self._buf  # empty, or holding what a new part starts with
+        if not buf:
             self._chunk_start = self._chunk_end = log_ns
         elif log_ns > self._chunk_end:
             self._chunk_end = log_ns
@@ -189,6 +201,10 @@ class SessionWriter:
         channel.index.append(len(buf))
         buf += data
         channel.count += 1
+
+    def _describe_robot(self, t_ns: int) -> None:
+        if self._urdf is not None:
+            self.write(ROBOT_DESCRIPTION.topic, TextSample(t_ns, self._urdf))
 
     def flush(self) -> None:
         """Compress and write the open chunk now and hand it to the operating system."""
@@ -238,6 +254,7 @@ class SessionWriter:
             self._finish_part()
             self._part += 1
             self._open_part()
+            self._describe_robot(self._chunk_end - self._offset_ns)  # each part stands alone
 
     def close(self) -> None:
         """Write what is buffered and the summary; the file is then complete. Idempotent."""

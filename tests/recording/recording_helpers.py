@@ -18,13 +18,14 @@ from hilrig.recording import (
     Sample,
     SessionInfo,
     SessionWriter,
+    TextSample,
     WrenchSample,
     default_channels,
 )
 
 START_UTC_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00:00Z
 START_MONO_NS = 5_000_000_000
-URDF = b'<?xml version="1.0"?>\n<robot name="aubo_i5"><link name="base_link"/></robot>\n'
+URDF = '<?xml version="1.0"?>\n<robot name="aubo_i5"><link name="base_link"/></robot>\n'
 
 
 def session_info() -> SessionInfo:
@@ -97,7 +98,6 @@ def write_session(path: Path, ticks: int, *, seed: int = 0, **options: object) -
     info = session_info()
     written = samples(ticks, seed=seed)
     attachments = [
-        Attachment("aubo_i5.urdf", "application/xml", URDF, log_time=START_UTC_NS),
         Attachment("config.toml", "application/toml", b"rate_hz = 1000\n", log_time=START_UTC_NS),
     ]
     with SessionWriter(
@@ -106,8 +106,10 @@ def write_session(path: Path, ticks: int, *, seed: int = 0, **options: object) -
         channels=default_channels(),
         calibration={"ft_wrist.bias_N": [0.1, -0.2, 0.05], "tool_mass_kg": 0.8},
         attachments=attachments,
+        urdf=URDF,
         **options,  # type: ignore[arg-type]
     ) as writer:
         for topic, sample in written:
             writer.write(topic, sample)
-    return Written(path, info, written)
+    robot = ("/robot_description", TextSample(START_MONO_NS, URDF))  # written by the writer
+    return Written(path, info, [robot, *written])

@@ -29,7 +29,7 @@ def test_info_shows_session_topics_rates_and_completeness(small_session: Written
         if "/ft/wrist" in line:
             assert "geometry_msgs/msg/WrenchStamped" in line
             assert "1,200" in line and "1000.0" in line
-    assert "attachment aubo_i5.urdf (application/xml" in out
+    assert "attachment robot.urdf (application/xml" in out
 
 
 def test_info_says_a_cut_file_is_truncated(small_session: Written, tmp_path: Path) -> None:

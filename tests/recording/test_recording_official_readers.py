@@ -106,8 +106,9 @@ def test_file_follows_the_ros2_profile(small_session: Written) -> None:
         assert schema.encoding == "ros2msg"
         assert "history: 1" in channel.metadata["offered_qos_profiles"]
         text = schema.data.decode()
-        assert "MSG: builtin_interfaces/Time\n" in text  # what Rerun needs to decode the header
-        assert "MSG: std_msgs/Header\n" in text
+        if schema.name != "std_msgs/msg/String":  # every stamped type carries its dependencies
+            assert "MSG: builtin_interfaces/Time\n" in text  # Rerun needs it for the header
+            assert "MSG: std_msgs/Header\n" in text
     names = {schema.name for schema in summary.schemas.values()}
     assert "geometry_msgs/msg/WrenchStamped" in names
     assert "hilrig_msgs/msg/ControllerState" in names
@@ -126,9 +127,18 @@ def test_session_calibration_and_attachments_are_stored(small_session: Written) 
         "tool_mass_kg": "0.8",
     }
     assert metadata["rosbag2"] == {"serialized_metadata": ""}
-    assert attachments["aubo_i5.urdf"].data == URDF
-    assert attachments["aubo_i5.urdf"].media_type == "application/xml"
+    assert attachments["robot.urdf"].data == URDF.encode()
+    assert attachments["robot.urdf"].media_type == "application/xml"
     assert attachments["config.toml"].data == b"rate_hz = 1000\n"
+
+
+def test_the_urdf_is_published_latched_on_robot_description(small_session: Written) -> None:
+    (item,) = decoded(small_session.path, "/robot_description")
+    assert item.decoded_message.data == URDF
+    assert item.schema.name == "std_msgs/msg/String"
+    assert item.message.log_time == small_session.info.start_utc_ns
+    qos = item.channel.metadata["offered_qos_profiles"]
+    assert "durability: 1\n" in qos and "depth: 1\n" in qos  # transient local, like ROS
 
 
 def test_every_chunk_spans_less_than_the_crash_bound(small_session: Written) -> None:

@@ -75,6 +75,11 @@ def test_decoded_values_are_the_written_ones(
     assert len(joints) == len(small_session.of("/joint_states"))
 
 
+def test_rerun_builds_the_robot_from_robot_description(converted: dict[str, Any]) -> None:
+    assert "TextDocument:text" in converted["/robot_description"]
+    assert "CoordinateFrame:frame" in converted["/aubo_i5"]  # the URDF's robot, by name
+
+
 def test_session_metadata_reaches_rerun(converted: dict[str, Any]) -> None:
     metadata = converted["/__mcap_metadata"]
     assert "session" in metadata
