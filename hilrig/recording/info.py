@@ -16,16 +16,15 @@ import numpy as np
 import numpy.typing as npt
 
 from hilrig.recording.chunks import ChunkError, indexed_entries, inflate, scan_entries
-from hilrig.recording.mcap_records import MESSAGE_PREFIX, RECORD_HEADER
-from hilrig.recording.reader import describe_truncation
+from hilrig.recording.mcap_records import MESSAGE_PREFIX
 from hilrig.recording.scan import (
     AttachmentRef,
     FileIndex,
-    _Cursor,
     add_definitions,
+    describe_truncation,
     index_mapped,
     open_mcap,
-    parse_metadata,
+    read_metadata,
 )
 from hilrig.recording.session import SESSION_METADATA
 
@@ -148,7 +147,6 @@ def _topic_info(index: FileIndex, channel_id: int, log: npt.NDArray[np.int64] | 
 def _metadata(mm: mmap.mmap, index: FileIndex) -> dict[str, dict[str, str]]:
     out: dict[str, dict[str, str]] = {}
     for ref in index.metadata:
-        start = ref.offset + RECORD_HEADER.size
-        name, values = parse_metadata(_Cursor(mm, start, ref.offset + ref.length))
+        name, values = read_metadata(mm, ref)
         out.setdefault(name, {}).update(values)
     return out

@@ -29,7 +29,14 @@ from hilrig.recording.columns import INDEX_NAME, FixedChannel
 from hilrig.recording.generic import DecodeError, RawMessage, decode_frame
 from hilrig.recording.mcap_records import MESSAGE_PREFIX, RECORD_HEADER, Channel, Schema
 from hilrig.recording.msgdef import parse_schema, short_name
-from hilrig.recording.scan import ChunkInfo, FileIndex, add_definitions, index_mapped, open_mcap
+from hilrig.recording.scan import (
+    ChunkInfo,
+    FileIndex,
+    add_definitions,
+    describe_truncation,
+    index_mapped,
+    open_mcap,
+)
 from hilrig.recording.schema import MESSAGE_ENCODING, SCHEMA_ENCODING
 from hilrig.recording.session import utc_iso
 
@@ -43,7 +50,8 @@ class RecordingWarning(UserWarning):
 
 @dataclass(frozen=True)
 class Loaded:
-    """What :func:`read` returns: the frames, and one line per problem met while loading."""
+    """What :func:`read` returns: the frames, one line per problem met while loading, and
+    the file's index (``index.complete``: summary intact; ``index.truncation``: where it ends)."""
 
     frames: dict[str, pd.DataFrame]
     problems: tuple[str, ...]
@@ -111,6 +119,7 @@ class _Channel:
         self.raw: list[RawMessage] = []
 
     def gather(self, data: npt.NDArray[np.uint8], offsets: npt.NDArray[np.int64]) -> None:
+        """Take the records at ``offsets`` of a batch; a misfit turns the channel generic."""
         if self.generic:
             return
         if self.fixed is None:
@@ -130,6 +139,7 @@ class _Channel:
         return FixedChannel(self.channel.id, layout, record, self.count)
 
     def frame(self) -> pd.DataFrame:
+        """The channel's frame; raises RecordingError if its messages do not decode."""
         if self.fixed is not None:
             return self.fixed.frame()
         if not self.raw:
@@ -335,20 +345,3 @@ class _Load:
             self._channel(cid)
         if self.refused and not self.channels:
             raise RecordingError(self.problems[-1].removesuffix("; skipped") + "; nothing to read")
-
-
-def describe_truncation(index: FileIndex) -> str:
-    """One line: where an unfinished file ends, what was kept and what was lost."""
-    t = index.truncation
-    assert t is not None
-    kept = index.chunks[-1].end_ns if index.chunks else None
-    line = f"{index.path}: unfinished recording (no summary); {len(index.chunks)} complete chunks"
-    line += f" kept, up to {utc_iso(kept)}" if kept is not None else " kept"
-    if t.lost_bytes == 0:
-        return line + "; nothing after them was written"
-    line += f"; the last {t.lost_bytes} bytes (an incomplete record) were lost"
-    if t.tail_start_ns is not None and t.tail_end_ns is not None:
-        lost_s = (t.tail_end_ns - t.tail_start_ns) / 1e9
-        line += f": messages from {utc_iso(t.tail_start_ns)} to {utc_iso(t.tail_end_ns)}"
-        line += f" ({lost_s:.3f} s)"
-    return line

@@ -21,12 +21,12 @@ import numpy as np
 from hilrig.errors import RecordingError
 from hilrig.recording import mcap_records as rec
 from hilrig.recording.chunks import ChunkError, Entries, indexed_entries, inflate, scan_entries
-from hilrig.recording.reader import describe_truncation
 from hilrig.recording.scan import (
     ChunkInfo,
     FileIndex,
     Truncation,
     add_definitions,
+    describe_truncation,
     index_mapped,
     open_mcap,
 )

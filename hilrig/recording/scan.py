@@ -18,6 +18,7 @@ from pathlib import Path
 
 from hilrig.errors import RecordingError
 from hilrig.recording.mcap_records import MAGIC, RECORD_HEADER, Channel, Op, Schema
+from hilrig.recording.session import utc_iso
 
 _FOOTER_SIZE = RECORD_HEADER.size + 20
 _CHUNK_FIXED = struct.Struct("<QQQI")  # start, end, uncompressed size, uncompressed crc
@@ -368,3 +369,26 @@ def add_definitions(index: FileIndex, data: bytes, positions: list[tuple[int, in
                 index.channels.setdefault(channel.id, channel)
         except (IndexError, struct.error, UnicodeDecodeError):
             continue  # a damaged definition leaves its channel unreadable, reported later
+
+
+def describe_truncation(index: FileIndex) -> str:
+    """One line: where an unfinished file ends, what was kept and what was lost."""
+    t = index.truncation
+    assert t is not None
+    kept = index.chunks[-1].end_ns if index.chunks else None
+    line = f"{index.path}: unfinished recording (no summary); {len(index.chunks)} complete chunks"
+    line += f" kept, up to {utc_iso(kept)}" if kept is not None else " kept"
+    if t.lost_bytes == 0:
+        return line + "; nothing after them was written"
+    line += f"; the last {t.lost_bytes} bytes (an incomplete record) were lost"
+    if t.tail_start_ns is not None and t.tail_end_ns is not None:
+        lost_s = (t.tail_end_ns - t.tail_start_ns) / 1e9
+        line += f": messages from {utc_iso(t.tail_start_ns)} to {utc_iso(t.tail_end_ns)}"
+        line += f" ({lost_s:.3f} s)"
+    return line
+
+
+def read_metadata(mm: mmap.mmap, ref: RecordRef) -> tuple[str, dict[str, str]]:
+    """The name and key-value pairs of the metadata record ``ref``."""
+    start = ref.offset + RECORD_HEADER.size
+    return parse_metadata(_Cursor(mm, start, ref.offset + ref.length))
