@@ -128,6 +128,8 @@ def batches(
                     group.append(chunks[i])
                     i += 1
                 buffer = free.get() if total <= batch_bytes else np.empty(total, dtype=np.uint8)
+                if stop.is_set():
+                    return
                 batch = Batch(buffer)
                 view, base = buffer.data, 0
                 for chunk in group:
@@ -151,12 +153,12 @@ def batches(
             yield item
             if len(item.data) == batch_bytes:
                 free.put(item.data)
-    finally:
+    finally:  # the consumer is done, perhaps early: stop the worker wherever it waits
         stop.set()
-        while worker.is_alive():  # unblock a worker waiting to hand over a batch
+        free.put(np.empty(0, dtype=np.uint8))
+        while worker.is_alive():
             with contextlib.suppress(queue.Empty):
                 ready.get(timeout=0.01)
-            free.put(np.empty(0, dtype=np.uint8))
 
 
 def indexed_entries(mm: mmap.mmap, chunk: ChunkInfo) -> Entries | None:
