@@ -111,8 +111,7 @@ class FixedChannel:
     size and fixed bytes, else :meth:`gather` refuses it (the channel then takes the slow path).
     """
 
-    def __init__(self, channel_id: int, layout: Layout, reference: bytes, capacity: int) -> None:
-        self.channel_id = channel_id
+    def __init__(self, layout: Layout, reference: bytes, capacity: int) -> None:
         self.layout = layout
         self.record_size = len(reference)
         pieces = [p for a, b in _fixed_ranges(layout) for p in _pieces(a, b)]

@@ -4,7 +4,7 @@ A channel's layout is taken once from a prototype message of its :class:`.Channe
 (:func:`.cdr.prototype`); the bytes that never change (encapsulation header, frame id, names,
 sequence lengths, padding) become constant ``s`` fields of the struct, the values become its
 numeric fields, and encoding a sample is a single ``Struct.pack`` of record header and payload.
-Events carry free text, so their layout is worked out per message.
+Events and strings carry free text, so their layout is worked out per message.
 """
 
 from __future__ import annotations

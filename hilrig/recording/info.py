@@ -26,7 +26,6 @@ from hilrig.recording.scan import (
     open_mcap,
     read_metadata,
 )
-from hilrig.recording.session import SESSION_METADATA
 
 #: An interval longer than this many median intervals counts as a gap.
 GAP_FACTOR = 5.0
@@ -72,10 +71,6 @@ class FileInfo:
     def end_ns(self) -> int | None:
         ends = [t.end_ns for t in self.topics if t.end_ns is not None]
         return max(ends) if ends else None
-
-    @property
-    def session(self) -> dict[str, str]:
-        return self.metadata.get(SESSION_METADATA, {})
 
 
 def inspect(path: str | os.PathLike[str], *, check: bool = False) -> FileInfo:

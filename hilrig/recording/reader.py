@@ -136,7 +136,7 @@ class _Channel:
             layout = layout_of(defs, short_name(self.schema.name), message)
         except (LayoutError, RecordingError, UnicodeDecodeError):
             return None
-        return FixedChannel(self.channel.id, layout, record, self.count)
+        return FixedChannel(layout, record, self.count)
 
     def frame(self) -> pd.DataFrame:
         """The channel's frame; raises RecordingError if its messages do not decode."""

@@ -14,16 +14,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from hilrig.errors import RecordingError
-from hilrig.recording.samples import (
-    ControllerSample,
-    EventRecord,
-    JointSample,
-    LoopTiming,
-    PoseSample,
-    Sample,
-    TextSample,
-    WrenchSample,
-)
 
 PROFILE = "ros2"
 SCHEMA_ENCODING = "ros2msg"
@@ -41,16 +31,6 @@ class MessageType(enum.Enum):
     LOOP_DIAGNOSTICS = "hilrig_msgs/msg/LoopDiagnostics"
     STRING = "std_msgs/msg/String"
 
-
-SAMPLE_TYPES: Mapping[MessageType, type[Sample]] = {
-    MessageType.WRENCH: WrenchSample,
-    MessageType.JOINT_STATE: JointSample,
-    MessageType.POSE: PoseSample,
-    MessageType.CONTROLLER_STATE: ControllerSample,
-    MessageType.EVENT: EventRecord,
-    MessageType.LOOP_DIAGNOSTICS: LoopTiming,
-    MessageType.STRING: TextSample,
-}
 
 #: The topics of DESIGN.md and their types (plus the URDF, as ROS publishes it).
 TOPICS: Mapping[str, MessageType] = {
