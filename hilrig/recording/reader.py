@@ -173,7 +173,9 @@ class _Load:
         progress: Progress | None,
     ) -> None:
         self.mm, self.index, self.progress = mm, index, progress
-        self.topics = None if topics is None else set(topics)
+        self.topics = (
+            None if topics is None else {topics} if isinstance(topics, str) else set(topics)
+        )
         self.start = 0 if start_ns is None else start_ns
         self.end = 2**64 if end_ns is None else end_ns
         self.problems: list[str] = []

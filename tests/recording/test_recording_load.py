@@ -95,6 +95,10 @@ def test_time_range_and_topics_select_like_the_mcap_reader(small_session: Writte
             assert frames[topic].index.tolist() == times
 
 
+def test_one_topic_may_be_given_as_a_string(small_session: Written) -> None:
+    assert list(load(small_session.path, topics="/ft/wrist")) == ["/ft/wrist"]
+
+
 def test_unknown_topic_is_a_one_line_error(small_session: Written) -> None:
     with pytest.raises(RecordingError, match=r"small\.mcap: no topic /nope \(has /controller"):
         load(small_session.path, topics=["/nope"])
