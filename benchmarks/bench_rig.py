@@ -47,6 +47,15 @@ def run() -> list[Result]:
         stdout=subprocess.PIPE,
         text=True,
     )
+    try:
+        return measure(server)
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+
+
+def measure(server: subprocess.Popen[str]) -> list[Result]:
+    """Drive the rig served by ``server`` for DURATION_S and return the results."""
     assert server.stdout is not None
     lines = [server.stdout.readline() for _ in range(5)]
     ft_port = endpoint(lines, "F/T sensor")
@@ -63,7 +72,7 @@ def run() -> list[Result]:
         time.sleep(0.5)  # settle: connections, first frames
         sensor.drain()
         server_cpu0, own_cpu0 = cpu_s(server.pid), cpu_s(os.getpid())
-        frames0, written0, last_seq = state.stats.frames, writer.stats.written, -1
+        frames0, written0, last_seq = state.decoder_stats().frames, writer.stats.written, -1
         start = time.monotonic_ns()
         deadline = start
         q = np.asarray(HOME_Q_RAD)
@@ -82,10 +91,8 @@ def run() -> list[Result]:
         elapsed_s = (time.monotonic_ns() - start) / 1e9
         server_cpu = (cpu_s(server.pid) - server_cpu0) / elapsed_s * 100
         own_cpu = (cpu_s(os.getpid()) - own_cpu0) / elapsed_s * 100
-        state_rate = (state.stats.frames - frames0) / elapsed_s
+        state_rate = (state.decoder_stats().frames - frames0) / elapsed_s
         write_rate = (writer.stats.written - written0) / elapsed_s
-    server.terminate()
-    server.wait(timeout=10)
     ft_rate = ft_samples / elapsed_s
     state_q = quantiles_us(latencies_ns)
     write_q = quantiles_us(write_latencies_ns)

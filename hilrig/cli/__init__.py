@@ -6,6 +6,7 @@ Expected failures (HilrigError) print one line to stderr and exit 2; nothing els
 import sys
 
 from rich.console import Console
+from rich.text import Text
 
 from hilrig.cli import (  # noqa: F401  (register their commands)
     paper,
@@ -23,5 +24,7 @@ def main() -> None:
     try:
         app()
     except HilrigError as err:
-        Console(stderr=True).print(f"[bold red]error:[/] {err}", highlight=False)
+        # one line whatever the width, and the message is text, never rich markup
+        line = Text("error: ", style="bold red").append(str(err))
+        Console(stderr=True, soft_wrap=True).print(line, highlight=False)
         sys.exit(2)

@@ -32,7 +32,7 @@ def serve(
     seed: Annotated[int, typer.Option(help="Seed of the sensor and joint-torque noise.")] = 0,
 ) -> None:
     """Run the emulated AUBO-i5 and wrist F/T sensor; print their endpoints; stop on Ctrl-C."""
-    console = Console()
+    console = Console(soft_wrap=True)  # endpoint lines are read by scripts: never wrapped
     config = RigConfig(rate_hz=rate_hz, seed=seed)
     rig = EmulatedRig(scenario(volunteer), config=config, port_path=port_path)
     stop = threading.Event()
@@ -46,6 +46,7 @@ def serve(
         for line in endpoints.lines():
             console.print(f"  {line}", highlight=False)
         console.print("Ctrl-C to stop", highlight=False)
+        console.file.flush()  # a script reading the endpoints from a pipe must get them now
         stop.wait()
     finally:
         rig.stop()

@@ -1,0 +1,40 @@
+"""``hilrig rig serve`` as its own process: endpoints on stdout at once, clean stop on SIGINT."""
+
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+from hilrig.drivers.robot_state import RobotStateClient
+
+
+def test_rig_serve_prints_endpoints_that_work_and_stops_cleanly(tmp_path: Path) -> None:
+    hilrig = Path(sys.executable).with_name("hilrig")
+    server = subprocess.Popen(
+        [
+            str(hilrig),
+            "rig",
+            "serve",
+            "--scenario",
+            "paper-body",
+            "--port-path",
+            str(tmp_path / "ft"),
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert server.stdout is not None
+        lines = [server.stdout.readline() for _ in range(5)]
+        assert lines[0].startswith("emulated rig running, scenario paper-body, 1000 Hz")
+        assert lines[1].strip() == f"wrist F/T sensor (Kunwei, 460800 8N1): {tmp_path / 'ft'}"
+        host, port = lines[2].rsplit(": ", 1)[1].strip().rsplit(":", 1)
+        assert host == "127.0.0.1"
+        with RobotStateClient(host, int(port)) as client:
+            assert client.latest() is not None
+        server.send_signal(signal.SIGINT)
+        out, _ = server.communicate(timeout=20)
+    finally:
+        server.kill()
+    assert server.returncode == 0
+    assert out.startswith("stopped: ")
