@@ -202,6 +202,11 @@ class AdmittanceController:
         return self._offset
 
     @property
+    def offset(self) -> NDArray[np.float64]:
+        """e after the last step (m, rad): what ``step`` returned."""
+        return self._offset
+
+    @property
     def velocity(self) -> NDArray[np.float64]:
         """e' after the last step (m/s, rad/s)."""
         return self._velocity

@@ -82,6 +82,7 @@ class WriterStats:
     exceptions: dict[int, int] = field(default_factory=dict)
     last_write_ns: int = 0  # time.monotonic_ns() when the last write was acknowledged
     last_latency_ns: int = 0  # submit -> acknowledged, of the last write
+    last_source_ns: int = 0  # the source time given with the last acknowledged write (or 0)
 
 
 class JointTargetsWriter(Writer[ArrayLike]):
@@ -101,7 +102,7 @@ class JointTargetsWriter(Writer[ArrayLike]):
         self._wake = threading.Event()
         self._stop = threading.Event()
         self._linked = threading.Event()
-        self._pending: tuple[tuple[float, ...], Mode, int] | None = None
+        self._pending: tuple[tuple[float, ...], Mode, int, int] | None = None
         self._sequence = 0
         self._thread: threading.Thread | None = None
         self.stats = WriterStats()
@@ -136,10 +137,13 @@ class JointTargetsWriter(Writer[ArrayLike]):
         """True while the thread runs and the link is open."""
         return self._thread is not None and self._thread.is_alive() and self._linked.is_set()
 
-    def write(self, value: ArrayLike, mode: Mode = Mode.TRACK) -> None:
+    def write(self, value: ArrayLike, mode: Mode = Mode.TRACK, *, source_ns: int = 0) -> None:
         """Queue the newest joint targets (6, rad); never blocks.
 
-        Non-finite targets are refused (counted in ``stats.refused``), never sent.
+        ``source_ns`` (monotonic) is when the input these targets answer arrived, e.g. the F/T
+        frame; it comes back as ``stats.last_source_ns`` once the write is acknowledged, so the
+        caller can measure sensor-to-command latency. Non-finite targets are refused (counted in
+        ``stats.refused``), never sent.
         """
         q = tuple(float(v) for v in np.asarray(value, dtype=np.float64).reshape(JOINTS))
         if not all(np.isfinite(q)):
@@ -149,7 +153,7 @@ class JointTargetsWriter(Writer[ArrayLike]):
         with self._lock:
             if self._pending is not None:
                 self.stats.superseded += 1
-            self._pending = (q, mode, now)
+            self._pending = (q, mode, now, source_ns)
             self.stats.submitted += 1
         self._wake.set()
 
@@ -168,7 +172,7 @@ class JointTargetsWriter(Writer[ArrayLike]):
             last_error="" if self.last_error is None else str(self.last_error),
         )
 
-    def _take(self) -> tuple[tuple[float, ...], Mode, int] | None:
+    def _take(self) -> tuple[tuple[float, ...], Mode, int, int] | None:
         with self._lock:
             pending, self._pending = self._pending, None
         return pending
@@ -216,7 +220,12 @@ class JointTargetsWriter(Writer[ArrayLike]):
         self.stats.reconnects += 1
 
     def _write(
-        self, client: ModbusClient, q: tuple[float, ...], mode: Mode, submitted_ns: int
+        self,
+        client: ModbusClient,
+        q: tuple[float, ...],
+        mode: Mode,
+        submitted_ns: int,
+        source_ns: int,
     ) -> bool:
         """One write; False when the link must be reopened."""
         self._sequence = (self._sequence + 1) & 0xFFFF
@@ -243,4 +252,5 @@ class JointTargetsWriter(Writer[ArrayLike]):
         self.stats.written += 1
         self.stats.last_write_ns = now
         self.stats.last_latency_ns = now - submitted_ns
+        self.stats.last_source_ns = source_ns
         return True
