@@ -1,0 +1,244 @@
+"""Single-producer single-consumer rings of fixed-dtype rows in shared memory.
+
+The real-time loop (producer) hands rows to the recorder process (consumer) without locks,
+system calls, pickling or allocation: :meth:`Ring.reserve` returns a writable view of the next
+free slot (or None when the ring is full, which counts a drop), the loop fills it in place and
+:meth:`Ring.commit` publishes it. The consumer copies every committed row out with
+:meth:`Ring.read_available`. Neither side ever waits for the other.
+
+Layout of the shared block: a 192-byte header of int64 words - a magic number, the row size and
+capacity (checked on attach), then on its own 64-byte cache line the write index and the drop
+count (written by the producer only), then on another line the read index (written by the
+consumer only) - followed by ``capacity`` rows. Indices count rows since creation and never
+wrap; row ``i`` lives in slot ``i % capacity``.
+
+Lifetime: the creator (:meth:`Ring.create`) unlinks the block (:meth:`Ring.unlink`) once both
+sides are done; every process, creator included, calls :meth:`Ring.close` to unmap it. Attach
+only from processes started by :mod:`multiprocessing` (spawn, forkserver or fork): they share
+the creator's resource tracker, which also unlinks the block if the creator dies without doing
+so. A process with its own tracker (Python < 3.13) would unlink the block when it exits.
+"""
+
+from __future__ import annotations
+
+import secrets
+from dataclasses import dataclass
+from multiprocessing import shared_memory
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from hilrig.errors import RecordingError
+
+Rows = npt.NDArray[np.void]
+"""Structured rows of a ring's dtype; a 0-d array of it is one writable row (a slot)."""
+
+_MAGIC = int.from_bytes(b"HILRING1", "little")
+_WORDS = 24  # header size in int64 words (192 bytes: three 64-byte cache lines)
+_MAGIC_AT, _ITEMSIZE_AT, _CAPACITY_AT = 0, 1, 2
+_WRITE_AT, _DROPPED_AT = 8, 9  # the producer's cache line
+_READ_AT = 16  # the consumer's cache line
+_HEADER_BYTES = _WORDS * 8
+
+
+@dataclass(frozen=True)
+class RingSpec:
+    """What both sides need to find a ring: shared-memory ``name``, row ``dtype``, ``capacity``
+    (rows). Picklable: hand it to the consumer process."""
+
+    name: str
+    dtype: np.dtype[Any]
+    capacity: int
+
+    def __post_init__(self) -> None:
+        if self.capacity < 1:
+            raise RecordingError(f"ring {self.name}: capacity must be >= 1, got {self.capacity}")
+
+    @classmethod
+    def unique(cls, label: str, dtype: np.dtype[Any], capacity: int) -> RingSpec:
+        """A spec with a fresh name ``hilrig-<label>-<8 random hex digits>`` (a short label keeps
+        it under macOS's 31 characters)."""
+        return cls(f"hilrig-{label}-{secrets.token_hex(4)}", dtype, capacity)
+
+    @property
+    def nbytes(self) -> int:
+        """Size of the shared block: header plus rows (bytes)."""
+        return _HEADER_BYTES + self.capacity * self.dtype.itemsize
+
+
+class Ring:
+    """One end of a ring (use :meth:`create` or :meth:`attach`, not the constructor).
+
+    Producer side: :meth:`reserve` / :meth:`commit`, or :meth:`push`. Consumer side:
+    :meth:`read_available`. Each side belongs to one thread of one process; either side may be
+    the creator.
+    """
+
+    def __init__(self, spec: RingSpec, shm: shared_memory.SharedMemory, *, owner: bool) -> None:
+        self.spec = spec
+        self._shm = shm
+        self._owner = owner
+        self._capacity = spec.capacity
+        buf = shm.buf
+        assert buf is not None  # None only after close
+        # memoryview items are Python ints; an aligned 8-byte store is one instruction.
+        self._words = buf[:_HEADER_BYTES].cast("q")
+        # frombuffer keeps a memoryview of the block as the base of every view of the rows, so
+        # the block cannot be unmapped under a live view (see close).
+        self._data: Rows = np.frombuffer(
+            buf, dtype=spec.dtype, count=spec.capacity, offset=_HEADER_BYTES
+        )
+        # One 0-d view per slot, made once: reserve() hands them out without allocating.
+        self._slots = tuple(self._data[i, ...] for i in range(spec.capacity))
+        self._write = self._words[_WRITE_AT]  # producer's copy of its own index
+        self._dropped = self._words[_DROPPED_AT]
+        self._read = self._words[_READ_AT]  # consumer's copy of its own index
+        self._read_seen = self._read  # producer's last look at the consumer's index
+        self._reserved = False
+        self._closed = False
+
+    @classmethod
+    def create(cls, spec: RingSpec) -> Ring:
+        """Create the shared block of ``spec``, empty. Raises RecordingError if it exists."""
+        try:
+            shm = shared_memory.SharedMemory(spec.name, create=True, size=spec.nbytes)
+        except OSError as err:
+            raise RecordingError(f"ring {spec.name}: cannot create ({err})") from err
+        words = _header(shm)
+        words[_ITEMSIZE_AT] = spec.dtype.itemsize
+        words[_CAPACITY_AT] = spec.capacity
+        words[_MAGIC_AT] = _MAGIC
+        words.release()
+        return cls(spec, shm, owner=True)
+
+    @classmethod
+    def attach(cls, spec: RingSpec) -> Ring:
+        """Map the existing block of ``spec``. Raises RecordingError if it is missing or was
+        made for another row size or capacity."""
+        try:
+            shm = shared_memory.SharedMemory(spec.name)
+        except OSError as err:
+            raise RecordingError(f"ring {spec.name}: cannot attach ({err})") from err
+        found = (0, 0, 0)
+        if shm.size >= spec.nbytes:
+            words = _header(shm)
+            found = (words[_MAGIC_AT], words[_ITEMSIZE_AT], words[_CAPACITY_AT])
+            words.release()
+        if found != (_MAGIC, spec.dtype.itemsize, spec.capacity):
+            shm.close()
+            raise RecordingError(
+                f"ring {spec.name}: the shared block is not a ring of {spec.capacity} rows of"
+                f" {spec.dtype.itemsize} bytes"
+            )
+        return cls(spec, shm, owner=False)
+
+    # -- producer -----------------------------------------------------------------------------
+
+    def reserve(self) -> Rows | None:
+        """The next free slot as a writable 0-d row view, or None if the ring is full (counted
+        in :attr:`dropped`). Fill it, then :meth:`commit`; until then it is invisible to the
+        consumer, and calling reserve again returns the same slot."""
+        write = self._write
+        if write - self._read_seen >= self._capacity:
+            self._read_seen = self._words[_READ_AT]  # only look when it seems full
+            if write - self._read_seen >= self._capacity:
+                self._dropped += 1
+                self._words[_DROPPED_AT] = self._dropped
+                self._reserved = False
+                return None
+        self._reserved = True
+        return self._slots[write % self._capacity]
+
+    def commit(self) -> None:
+        """Publish the reserved row; without a reservation (reserve returned None) do nothing."""
+        if self._reserved:
+            self._reserved = False
+            self._write += 1
+            # Publication order: the row's bytes were stored before this index store. x86-64
+            # keeps stores in program order (TSO), and CPython performs the row stores and this
+            # one in separate C calls the compiler cannot reorder, so a consumer that sees the
+            # new index sees the row. Weakly ordered CPUs (ARM) would need a release fence here.
+            self._words[_WRITE_AT] = self._write
+
+    def push(self, *values: Any) -> bool:
+        """Reserve, fill with ``values`` (one per field, in dtype order) and commit. Returns
+        False if the ring was full (counted as a drop). Converts its values, so it is slower
+        than filling a reserved slot in place."""
+        slot = self.reserve()
+        if slot is None:
+            return False
+        slot[()] = values
+        self.commit()
+        return True
+
+    # -- consumer -----------------------------------------------------------------------------
+
+    def read_available(self) -> Rows:
+        """Copy out every committed row not read yet, oldest first, and release their slots."""
+        write = self._words[_WRITE_AT]  # load the index before the rows it publishes
+        start = self._read % self._capacity
+        count = write - self._read
+        end = start + count
+        if end <= self._capacity:
+            rows = self._data[start:end].copy()
+        else:
+            rows = np.concatenate((self._data[start:], self._data[: end - self._capacity]))
+        # The slots are handed back only after the copy: x86-64 never moves a store before
+        # earlier loads, so the producer cannot overwrite a row still being copied.
+        self._read = write
+        self._words[_READ_AT] = write
+        return rows
+
+    # -- both ---------------------------------------------------------------------------------
+
+    @property
+    def owner(self) -> bool:
+        """True in the process that created the block (and must unlink it)."""
+        return self._owner
+
+    @property
+    def pushed(self) -> int:
+        """Rows committed since creation (the write index)."""
+        return int(self._words[_WRITE_AT])
+
+    @property
+    def dropped(self) -> int:
+        """Rows refused because the ring was full, since creation."""
+        return int(self._words[_DROPPED_AT])
+
+    @property
+    def backlog(self) -> int:
+        """Rows committed but not yet read by the consumer."""
+        return int(self._words[_WRITE_AT] - self._words[_READ_AT])
+
+    def close(self) -> None:
+        """Unmap the block in this process; call again once the views are gone if it raised.
+
+        Raises RecordingError while a slot or field view handed out by :meth:`reserve` is still
+        referenced: the block stays mapped rather than leave the view dangling.
+        """
+        if not self._closed:
+            self._closed = True
+            self._slots = ()
+            del self._data
+            self._words.release()
+        try:
+            self._shm.close()
+        except BufferError as err:
+            raise RecordingError(
+                f"ring {self.spec.name}: cannot unmap while a reserved slot is still referenced"
+            ) from err
+
+    def unlink(self) -> None:
+        """Remove the block's name (creator only; mappings stay valid until closed)."""
+        if not self._owner:
+            raise RecordingError(f"ring {self.spec.name}: only its creator unlinks it")
+        self._shm.unlink()
+
+
+def _header(shm: shared_memory.SharedMemory) -> memoryview:
+    """The header words of an open block (int64 items)."""
+    buf = shm.buf
+    assert buf is not None  # None only after close
+    return buf[:_HEADER_BYTES].cast("q")
