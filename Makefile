@@ -13,8 +13,8 @@ $(STAMP): pyproject.toml constraints.txt
 	$(BIN)/python -m pip install --quiet -c constraints.txt -e '.[dev]'
 	touch $(STAMP)
 
-demo: $(STAMP)  ## the main job: the paper's simulation experiments (table, CSV, Markdown, plots)
-	$(BIN)/hilrig paper --out $(OUT)/paper
+demo: $(STAMP)  ## the main job: the paper table, then its collisions recorded on the emulated rig
+	$(BIN)/hilrig demo --out $(OUT)/demo
 
 test: lint typecheck  ## lint, type-check and run every test
 	$(BIN)/python -m pytest

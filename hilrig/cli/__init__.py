@@ -9,7 +9,9 @@ from rich.console import Console
 from rich.text import Text
 
 from hilrig.cli import (  # noqa: F401  (register their commands)
+    demo,
     paper,
+    record,
     recording,
     rig,
 )

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from pymodbus import FramerType
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.constants import ExcCodes
@@ -102,7 +102,7 @@ class JointTargetsWriter(Writer[ArrayLike]):
         self._wake = threading.Event()
         self._stop = threading.Event()
         self._linked = threading.Event()
-        self._pending: tuple[tuple[float, ...], Mode, int, int] | None = None
+        self._pending: tuple[NDArray[np.float64], Mode, int, int] | None = None
         self._sequence = 0
         self._thread: threading.Thread | None = None
         self.stats = WriterStats()
@@ -145,8 +145,8 @@ class JointTargetsWriter(Writer[ArrayLike]):
         caller can measure sensor-to-command latency. Non-finite targets are refused (counted in
         ``stats.refused``), never sent.
         """
-        q = tuple(float(v) for v in np.asarray(value, dtype=np.float64).reshape(JOINTS))
-        if not all(np.isfinite(q)):
+        q = np.array(value, dtype=np.float64).reshape(JOINTS)  # a copy: the caller may reuse
+        if not np.isfinite(q).all():
             self.stats.refused += 1
             return
         now = time.monotonic_ns()
@@ -172,7 +172,7 @@ class JointTargetsWriter(Writer[ArrayLike]):
             last_error="" if self.last_error is None else str(self.last_error),
         )
 
-    def _take(self) -> tuple[tuple[float, ...], Mode, int, int] | None:
+    def _take(self) -> tuple[NDArray[np.float64], Mode, int, int] | None:
         with self._lock:
             pending, self._pending = self._pending, None
         return pending
@@ -222,14 +222,14 @@ class JointTargetsWriter(Writer[ArrayLike]):
     def _write(
         self,
         client: ModbusClient,
-        q: tuple[float, ...],
+        q: NDArray[np.float64],
         mode: Mode,
         submitted_ns: int,
         source_ns: int,
     ) -> bool:
         """One write; False when the link must be reopened."""
         self._sequence = (self._sequence + 1) & 0xFFFF
-        registers = self._map.encode(JointTargets(q, self._sequence, mode))
+        registers = self._map.encode(JointTargets(tuple(q.tolist()), self._sequence, mode))
         try:
             reply = client.write_registers(
                 self._map.start, registers, device_id=self._map.device_id

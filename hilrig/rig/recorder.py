@@ -20,7 +20,6 @@ event sent before it is recorded), then :meth:`RecorderFeed.close`.
 from __future__ import annotations
 
 import contextlib
-import math
 import multiprocessing
 import os
 import queue
@@ -311,8 +310,6 @@ DESIRED_TOPIC = "/trajectory/desired"
 COMMANDED_TOPIC = "/trajectory/commanded"
 LOOP_TOPIC = "/diagnostics/loop"
 EVENTS_TOPIC = "/events"
-# The controllers take Cartesian forces only: /controller/input carries no torque.
-_NO_TORQUE = (math.nan, math.nan, math.nan)
 
 Messages = Iterator[tuple[str, Sample]]
 
@@ -338,6 +335,7 @@ def joint_samples(rows: Rows) -> Messages:
 _TICK_COLUMNS = (
     "t_ns",
     "force",
+    "moment",
     "offset",
     "offset_rate",
     "damping",
@@ -358,12 +356,12 @@ _TICK_COLUMNS = (
 
 
 def tick_samples(rows: Rows) -> Messages:
-    """Per TICK_DTYPE row, in this order: ``/controller/input`` (the Cartesian forces, N;
-    torque NaN), ``/controller/state`` (all axes), ``/trajectory/desired``,
+    """Per TICK_DTYPE row, in this order: ``/controller/input`` (the compensated wrist wrench
+    in the base frame, N and N*m), ``/controller/state`` (all axes), ``/trajectory/desired``,
     ``/trajectory/commanded`` (positions only) and ``/diagnostics/loop``."""
     columns = zip(*(rows[c].tolist() for c in _TICK_COLUMNS), strict=True)
-    for t, f, e, ed, b, k, chi, zeta, contact, p, o, q, *timing in columns:
-        yield INPUT_TOPIC, WrenchSample(t, (f[0], f[1], f[2]), _NO_TORQUE)
+    for t, f, m, e, ed, b, k, chi, zeta, contact, p, o, q, *timing in columns:
+        yield INPUT_TOPIC, WrenchSample(t, (f[0], f[1], f[2]), (m[0], m[1], m[2]))
         yield STATE_TOPIC, ControllerSample(t, f, e, ed, b, k, chi, zeta, contact)
         yield DESIRED_TOPIC, PoseSample(t, (p[0], p[1], p[2]), (o[0], o[1], o[2], o[3]))
         yield COMMANDED_TOPIC, JointSample(t, q)

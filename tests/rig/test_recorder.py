@@ -93,6 +93,7 @@ def fill_rows(feed: RecorderFeed, i: int) -> None:
         ):
             tick[name] = axes_of(i, field)
         tick["contact"] = np.arange(9) % 4
+        tick["moment"] = wrench_of(i)[3:]
         tick["desired_position"] = wrench_of(i)[:3]
         tick["desired_orientation"] = (0.0, 0.0, math.sin(i), math.cos(i))
         tick["commanded_q"] = -axes_of(i, 3)[:6]
@@ -137,7 +138,7 @@ def check_rows(frames: dict[str, Any], n: int) -> None:
     assert state["contact_state_7"].tolist() == [3] * n
     controller_input = frames["/controller/input"]
     assert controller_input["wrench.force.z"].tolist() == [axes_of(k, 0)[2] for k in range(n)]
-    assert controller_input["wrench.torque.x"].isna().all()
+    assert controller_input["wrench.torque.x"].tolist() == [wrench_of(k)[3] for k in range(n)]
     desired = frames["/trajectory/desired"]
     assert desired["pose.orientation.w"].tolist() == [math.cos(k) for k in range(n)]
     commanded = frames["/trajectory/commanded"]
@@ -196,7 +197,7 @@ def test_every_row_and_event_reaches_its_topic_with_its_values(
     assert list(last["/joint_states"].position) == axes_of(i, 1)[:6].tolist()
     assert list(last["/controller/state"].axis_names) == list(AXIS_NAMES)
     assert list(last["/controller/state"].stiffness) == axes_of(i, 4).tolist()
-    assert math.isnan(last["/controller/input"].wrench.torque.y)
+    assert last["/controller/input"].wrench.torque.y == wrench_of(i)[4]
     assert last["/trajectory/desired"].pose.position.z == i + 1.0
     assert list(last["/trajectory/commanded"].velocity) == []
     assert last["/diagnostics/loop"].lateness_ns == i % 7

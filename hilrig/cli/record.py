@@ -1,0 +1,156 @@
+"""``hilrig record``: run and record one volunteer collision session."""
+
+import signal
+import threading
+import time
+import tomllib
+from collections import deque
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.live import Live
+from rich.text import Text
+
+from hilrig.cli.app import app
+from hilrig.drivers.emulated.rig import RigEndpoints
+from hilrig.drivers.emulated.scenarios import SCENARIOS
+from hilrig.errors import HilrigError
+from hilrig.recording.samples import EventRecord
+from hilrig.rig.loop import ControlLoop, LoopConfig
+from hilrig.rig.session import SessionConfig, SessionResult, record_session
+
+
+def endpoints_from_toml(path: Path) -> RigEndpoints:
+    """The real rig's endpoints from a TOML file (``[endpoints]`` table; see ``--help``)."""
+    try:
+        table = tomllib.loads(path.read_text())["endpoints"]
+        robot_host, robot_port = str(table["robot_state"]).rsplit(":", 1)
+        modbus_host, modbus_port = str(table["modbus"]).rsplit(":", 1)
+        return RigEndpoints(
+            str(table["ft_wrist_port"]),
+            (robot_host, int(robot_port)),
+            (modbus_host, int(modbus_port)),
+        )
+    except (OSError, tomllib.TOMLDecodeError, KeyError, ValueError) as err:
+        raise HilrigError(f"{path}: not a rig config with an [endpoints] table ({err})") from err
+
+
+def status_line(loop: ControlLoop, started: float) -> Text:
+    """One line: time, tick rate, lateness, force, offset, contact, hold reason, drops."""
+    s = loop.status
+    elapsed = max(time.monotonic() - started, 1e-9)
+    line = (
+        f"{elapsed:6.1f} s  {s.ticks / elapsed:6.0f} Hz  late {s.lateness_us:5.0f} us  "
+        f"|f| {s.force_n:5.1f} N  |e| {s.offset_mm:5.1f} mm  {s.contact:10s}"
+    )
+    if s.holding:
+        line += f"  HOLD ({s.holding})"
+    if s.drops:
+        line += f"  drops {s.drops}"
+    return Text(line)
+
+
+def print_result(console: Console, result: SessionResult) -> None:
+    summary = result.summary
+    late = summary.lateness.summary_us()
+    s2c = summary.sensor_to_command.summary_us()
+    missed_pct = 100 * summary.missed_deadlines / max(summary.ticks, 1)
+    console.print(f"recorded {result.path}", highlight=False)
+    console.print(
+        f"  {summary.ticks} ticks, missed deadlines {summary.missed_deadlines} "
+        f"({missed_pct:.3f} %),"
+        f" lateness p50 {late['p50']:.0f} us p99 {late['p99']:.0f} us max {late['max']:.0f} us",
+        highlight=False,
+    )
+    console.print(
+        f"  sensor-to-command p50 {s2c['p50']:.0f} us p99 {s2c['p99']:.0f} us; "
+        f"{result.messages_written or 'unknown'} messages written, {result.drops} dropped; "
+        f"{len(result.events)} events, {summary.hold_ticks} hold ticks",
+        highlight=False,
+    )
+
+
+@app.command()
+def record(
+    subject: Annotated[
+        str, typer.Option(help="Pseudonymous subject id like S012 (names are refused).")
+    ],
+    rig: Annotated[str, typer.Option(help="emulated (started here) or aubo.")] = "emulated",
+    config: Annotated[
+        Path | None,
+        typer.Option(
+            help="TOML with the real rig's [endpoints]: ft_wrist_port = '/dev/ttyUSB0', "
+            "robot_state = 'host:8002', modbus = 'host:502' (RTU over TCP)."
+        ),
+    ] = None,
+    controller: Annotated[str, typer.Option(help="Law: fixed, variable-stiffness, adaptive.")] = (
+        "adaptive"
+    ),
+    params: Annotated[str, typer.Option(help="Preset of the Cartesian axes.")] = "adaptive",
+    joint_params: Annotated[str, typer.Option(help="Preset of the joints.")] = "adaptive-joint",
+    scenario: Annotated[
+        str, typer.Option(help=f"Volunteer model (emulated rig): {', '.join(sorted(SCENARIOS))}.")
+    ] = "paper-end-effector",
+    trajectory: Annotated[str, typer.Option(help="Task: circle, square, hold.")] = "circle",
+    duration: Annotated[float, typer.Option(help="Seconds; Ctrl-C ends earlier, cleanly.")] = 20.0,
+    rate: Annotated[float, typer.Option(help="Loop rate, Hz (the paper used 500).")] = 1000.0,
+    out: Annotated[Path | None, typer.Option(help="The MCAP file to write.")] = None,
+) -> None:
+    """Run the admittance controller in the loop with the rig and record every stream."""
+    console = Console(soft_wrap=True)
+    if rig == "aubo" and config is None:
+        raise HilrigError("--rig aubo needs --config with the rig's endpoints")
+    path = out or Path("recordings") / f"{subject}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    session = SessionConfig(
+        out=path,
+        subject_id=subject,
+        scenario=scenario,
+        rig=rig,
+        endpoints=endpoints_from_toml(config) if config is not None else None,
+        duration_s=duration,
+        trajectory=trajectory,
+        loop=LoopConfig(
+            rate_hz=rate, law=controller, cartesian_params=params, joint_params=joint_params
+        ),
+    )
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    live = Live(Text("starting the rig..."), console=console, refresh_per_second=4, transient=True)
+    started = time.monotonic()
+
+    def on_start(loop: ControlLoop) -> None:
+        nonlocal started
+        started = time.monotonic()
+        live.get_renderable = lambda: status_line(loop, started)  # type: ignore[method-assign]
+
+    pending: deque[tuple[float, EventRecord]] = deque()  # the tick appends, never prints
+
+    def print_events() -> None:
+        while not done.wait(0.1):
+            while pending:
+                t_s, record = pending.popleft()
+                where = f" ({record.axis})" if record.axis else ""
+                text = f"{t_s:7.2f} s  {record.kind.name.lower()}: {record.source}{where}"
+                live.console.print(f"{text} {record.detail}".rstrip(), highlight=False)
+
+    done = threading.Event()
+    printer = threading.Thread(target=print_events, daemon=True, name="events")
+    printer.start()
+    try:
+        with live:
+            result = record_session(
+                session,
+                stop=stop,
+                on_start=on_start,
+                on_event=lambda r: pending.append((time.monotonic() - started, r)),
+            )
+    finally:
+        done.set()
+        printer.join(timeout=1)
+    print_result(console, result)
+    if result.recorder_error:
+        raise HilrigError(f"the recording is incomplete: {result.recorder_error}")

@@ -1,0 +1,64 @@
+"""Turn per-tick states into events: collisions, recoveries, link faults, safety clamps.
+
+Each event is emitted once, on the tick its condition changes, never every tick it holds, so
+``/events`` reads as a log an experimenter can scan. Contact states are the controller's per
+axis codes (Algorithm 2); the two axis groups are the Cartesian axes (0-2) and the joints (3-8).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hilrig.control import ContactState
+from hilrig.recording.samples import EventKind, EventRecord
+
+GROUPS = (("end effector", 0), ("joints", 3))  # (name, first axis) of each axis group
+
+
+class EventDetector:
+    """Remembers the last state of each condition and reports changes to ``on_event``."""
+
+    def __init__(self, on_event: Callable[[EventRecord], None]) -> None:
+        self._emit = on_event
+        self._contact = [int(ContactState.FREE)] * len(GROUPS)
+        self._links: dict[str, bool] = {}
+        self._clamp = 0
+
+    def contact(self, codes: NDArray[np.int8], t_ns: int) -> None:
+        """Collision start (-> contact), end (-> recovering), recovered (recovering -> free)."""
+        for index, (name, axis) in enumerate(GROUPS):
+            now = int(codes[axis])
+            before = self._contact[index]
+            if now == before:
+                continue
+            self._contact[index] = now
+            if now == ContactState.CONTACT and before != ContactState.HOLDING:
+                self._emit(EventRecord(t_ns, EventKind.COLLISION_START, "controller", "", name))
+            elif now == ContactState.RECOVERING:
+                self._emit(EventRecord(t_ns, EventKind.COLLISION_END, "controller", "", name))
+            elif now == ContactState.FREE and before == ContactState.RECOVERING:
+                self._emit(EventRecord(t_ns, EventKind.RECOVERED, "controller", "", name))
+
+    def link(self, device: str, ok: bool, t_ns: int) -> None:
+        """A device's data going stale or coming back."""
+        before = self._links.get(device, True)
+        if ok == before:
+            return
+        self._links[device] = ok
+        detail = "data fresh again: tracking resumes" if ok else "stale or lost: holding pose"
+        self._emit(EventRecord(t_ns, EventKind.FAULT, device, detail))
+
+    def clamp(self, flags: int, t_ns: int) -> None:
+        """The safety clamp engaging (or changing what it clamps)."""
+        if flags == self._clamp:
+            return
+        self._clamp = flags
+        if flags:
+            self._emit(EventRecord(t_ns, EventKind.FAULT, "safety", f"clamp engaged: {flags:#x}"))
+
+    def fault(self, source: str, detail: str, t_ns: int, *, value: float = float("nan")) -> None:
+        """Any other fault, emitted as given."""
+        self._emit(EventRecord(t_ns, EventKind.FAULT, source, detail, value=value))

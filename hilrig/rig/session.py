@@ -1,0 +1,188 @@
+"""A recorded HIL session, end to end: rig up, drivers connected, tare, loop, file closed.
+
+``record_session`` starts the emulated rig in its own process (or uses the endpoints of a real
+AUBO rig), connects the three drivers, tares the wrist sensor at the start pose (the tool's
+gravity accounted for), starts the recorder process and runs the loop until the duration has
+passed or ``stop`` is set (Ctrl-C, SIGTERM). Whatever happens, the robot is left holding and the
+recording is closed cleanly: the ExitStack unwinds in reverse order.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Callable
+from contextlib import ExitStack
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hilrig.drivers.emulated.rig import RigEndpoints
+from hilrig.drivers.emulated.scenarios import scenario as make_scenario
+from hilrig.drivers.ft_serial import FtSerial
+from hilrig.drivers.gravity import GravityCompensator, ToolLoad
+from hilrig.drivers.joint_targets import JointTargetsWriter, ModbusEndpoint
+from hilrig.drivers.robot_state import RobotStateClient
+from hilrig.errors import HilrigError, RecordingError
+from hilrig.recording import Attachment, SessionInfo, validate_subject_id
+from hilrig.recording.samples import EventRecord
+from hilrig.rig.loop import ControlLoop, LoopConfig, LoopSummary
+from hilrig.rig.recorder import RecorderFeed, RecorderProcess
+from hilrig.rig.records import AXIS_NAMES
+from hilrig.rig.rig_process import RigProcess
+from hilrig.rig.safety import SafetyClamp, SafetyConfig
+from hilrig.rig.trajectory import make_trajectory
+from hilrig.robot import RobotModel
+
+EMULATED_TOOL = ToolLoad(mass_kg=0.5, com_in_sensor_m=(0.0, 0.0, 0.05))
+
+
+@dataclass(frozen=True)
+class SessionConfig:
+    """One session: who (pseudonym), what (scenario, trajectory, controller), how long, where.
+
+    ``rig`` is "emulated" (started here) or "aubo" with ``endpoints`` of the real devices.
+    """
+
+    out: Path
+    subject_id: str
+    scenario: str = "paper-end-effector"
+    rig: str = "emulated"
+    endpoints: RigEndpoints | None = None
+    duration_s: float | None = 20.0
+    trajectory: str = "circle"
+    loop: LoopConfig = field(default_factory=LoopConfig)
+    tool: ToolLoad = EMULATED_TOOL
+    tare_s: float = 0.2
+    session_id: str = ""
+
+    def as_json(self) -> str:
+        """The configuration as JSON, attached to the recording."""
+        record = asdict(self)
+        record["out"] = str(self.out)
+        return json.dumps(record, indent=2, default=str, sort_keys=True)
+
+
+@dataclass
+class SessionResult:
+    """What a session produced: the file, the loop's summary and the recorder's counts."""
+
+    path: Path
+    summary: LoopSummary
+    messages_written: int | None  # None when the recorder died: see recorder_error
+    drops: int
+    events: list[EventRecord]
+    recorder_error: str = ""  # why the file may be truncated ("" when it closed cleanly)
+
+
+def record_session(
+    config: SessionConfig,
+    *,
+    stop: threading.Event | None = None,
+    on_start: Callable[[ControlLoop], None] | None = None,
+    on_event: Callable[[EventRecord], None] | None = None,
+    rig_ready: Callable[[RigProcess], None] | None = None,
+    recorder_ready: Callable[[RecorderProcess], None] | None = None,
+) -> SessionResult:
+    """Run and record one session; raises HilrigError (one line) when it cannot start.
+
+    ``on_start`` gets the loop before it ticks (e.g. for a status line), ``on_event`` every
+    event (called on the tick: it must only queue), ``rig_ready`` and ``recorder_ready`` the
+    emulated rig and recorder processes (fault injection in tests).
+    """
+    validate_subject_id(config.subject_id)
+    if config.rig not in ("emulated", "aubo"):
+        raise HilrigError(f"rig {config.rig!r} is not one of: emulated, aubo")
+    make_scenario(config.scenario)  # an unknown scenario fails before anything starts
+    stop = stop or threading.Event()
+    events: list[EventRecord] = []
+
+    def collect(record: EventRecord) -> None:
+        events.append(record)
+        if on_event is not None:
+            on_event(record)
+
+    with ExitStack() as stack:
+        if config.rig == "emulated":
+            rig = RigProcess(config.scenario)
+            endpoints = rig.start()
+            stack.callback(rig.stop)
+            if rig_ready is not None:
+                rig_ready(rig)
+        else:
+            if config.endpoints is None:
+                raise HilrigError("rig aubo needs its endpoints (a config file)")
+            endpoints = config.endpoints
+        sensor = FtSerial(endpoints.ft_wrist_port)
+        sensor.connect()
+        stack.callback(sensor.close)
+        robot = RobotStateClient(*endpoints.robot_state)
+        robot.connect()
+        stack.callback(robot.close)
+        targets = JointTargetsWriter(ModbusEndpoint(*endpoints.modbus))
+        targets.connect()
+        stack.callback(targets.close)
+
+        model = RobotModel()
+        latest = robot.latest()
+        assert latest is not None  # connect() waited for the first frame
+        q0 = np.asarray(latest.state.q_rad)
+        start_pose = model.fk(q0)
+        compensator = GravityCompensator(config.tool)
+        compensator.tare(sensor.average(config.tare_s), start_pose[:3, :3])
+        info = SessionInfo.starting_now(
+            session_id=config.session_id or time.strftime("%Y%m%d-%H%M%S"),
+            subject_id=config.subject_id,
+            rig=config.rig,
+            controller=config.loop.law,
+            controller_params=config.loop.params_record(),
+        )
+        feed = RecorderFeed()
+        stack.callback(feed.close)
+        recorder = RecorderProcess(
+            config.out,
+            info,
+            feed=feed,
+            urdf=model.urdf_xml,
+            attachments=[
+                Attachment("config.json", "application/json", config.as_json().encode()),
+                Attachment("scenario.txt", "text/plain", config.scenario.encode()),
+            ],
+            calibration={
+                "bias_in_sensor": compensator.bias_in_sensor.tolist(),
+                "tool_mass_kg": config.tool.mass_kg,
+                "tool_com_in_sensor_m": list(config.tool.com_in_sensor_m),
+            },
+            controller=config.loop.law,
+            axis_names=AXIS_NAMES,
+        )
+        recorder.start()
+        if recorder_ready is not None:
+            recorder_ready(recorder)
+        loop = ControlLoop(
+            config.loop,
+            sensor=sensor,
+            robot=robot,
+            targets=targets,
+            compensator=compensator,
+            trajectory=make_trajectory(config.trajectory, start_pose),
+            safety=SafetyClamp(SafetyConfig(dt_s=1.0 / config.loop.rate_hz), model, q0),
+            model=model,
+            feed=feed,
+            on_event=collect,
+        )
+        if on_start is not None:
+            on_start(loop)
+        recorder_error = ""
+        messages: int | None = None
+        try:
+            summary = loop.run(config.duration_s, stop)
+        finally:
+            try:
+                messages, drops = recorder.stop()
+            except RecordingError as err:  # the recorder died: the file ends where it did
+                recorder_error = f"{err}; `hilrig recover {config.out} -o OUT` restores it"
+                drops = feed.drops
+    return SessionResult(config.out, summary, messages, drops, events, recorder_error)

@@ -1,0 +1,143 @@
+"""Recorded emulated sessions, end to end, checked through the recording itself."""
+
+import os
+import signal
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hilrig.rig.recorder import RecorderProcess
+
+from hilrig.control import combine, preset, simulate
+from hilrig.recording import load, recover
+from hilrig.recording.samples import EventKind
+from hilrig.rig.loop import ControlLoop
+from hilrig.rig.rig_process import RigProcess
+from hilrig.rig.session import SessionConfig, SessionResult, record_session
+
+TOPICS_AT_1KHZ = (
+    "/ft/wrist",
+    "/joint_states",
+    "/controller/input",
+    "/controller/state",
+    "/trajectory/desired",
+    "/trajectory/commanded",
+    "/diagnostics/loop",
+)
+
+
+def run(
+    tmp: Path,
+    name: str,
+    seconds: float,
+    *,
+    scenario: str = "paper-end-effector",
+    during: Callable[[RigProcess, ControlLoop, threading.Event], None] | None = None,
+    recorders: list[RecorderProcess] | None = None,
+) -> SessionResult:
+    """Record a session; ``during`` runs in a thread once the loop has started."""
+    rig_box: list[RigProcess] = []
+    stop = threading.Event()
+
+    def on_start(loop: ControlLoop) -> None:
+        if during is not None:
+            threading.Thread(target=during, args=(rig_box[0], loop, stop), daemon=True).start()
+
+    return record_session(
+        SessionConfig(out=tmp / name, subject_id="S001", scenario=scenario, duration_s=seconds),
+        stop=stop,
+        on_start=on_start,
+        rig_ready=rig_box.append,
+        recorder_ready=None if recorders is None else recorders.append,
+    )
+
+
+@pytest.fixture(scope="module")
+def collision(tmp_path_factory: pytest.TempPathFactory) -> SessionResult:
+    """The paper's end-effector collision (4 s to 6 s) in a 6.5 s session."""
+    return run(tmp_path_factory.mktemp("session"), "collision.mcap", 6.5)
+
+
+def test_every_topic_is_recorded_at_its_rate_with_monotonic_times(
+    collision: SessionResult,
+) -> None:
+    frames = load(collision.path)
+    assert collision.drops == 0
+    for topic in TOPICS_AT_1KHZ:
+        t_ns = frames[topic].index.to_numpy()
+        span_s = (t_ns[-1] - t_ns[0]) / 1e9
+        assert np.all(np.diff(t_ns) >= 0), topic
+        assert len(t_ns) / span_s == pytest.approx(1000.0, rel=0.02), topic
+    ticks = frames["/diagnostics/loop"]
+    assert (np.diff(ticks["tick"].to_numpy()) == 1).all()  # no tick lost on the way to disk
+
+
+def test_recorded_state_is_the_controller_replayed_on_the_recorded_input(
+    collision: SessionResult,
+) -> None:
+    state = load(collision.path, topics=["/controller/state"])["/controller/state"]
+    force = state[[f"force_{i}" for i in range(9)]].to_numpy()
+    offset = state[[f"offset_{i}" for i in range(9)]].to_numpy()
+    params = combine((preset("adaptive"), 3), (preset("adaptive-joint"), 6))
+    replayed = simulate("adaptive", force, 0.001, params)
+    # the controller steps on every tick (on the last fresh input during a hold), so this
+    # holds whatever the session went through
+    np.testing.assert_allclose(replayed.offset, offset, rtol=0, atol=1e-12)
+
+
+def test_the_collision_moves_the_robot_and_is_logged(collision: SessionResult) -> None:
+    kinds = [e.kind for e in collision.events]
+    assert EventKind.COLLISION_START in kinds and EventKind.COLLISION_END in kinds
+    state = load(collision.path, topics=["/controller/state"])["/controller/state"]
+    assert np.abs(state["offset_0"]).max() > 0.005  # the end effector yielded by > 5 mm in x
+
+
+def test_faults_hold_the_robot_and_are_logged_while_the_loop_keeps_ticking(
+    tmp_path: Path,
+) -> None:
+    def inject(rig: RigProcess, loop: ControlLoop, stop: threading.Event) -> None:
+        for fault, args, at_s in (
+            ("ft.stall", (0.1,), 0.5),
+            ("robot_state.stall", (0.1,), 1.0),
+            ("modbus.inject_exceptions", (1,), 1.5),
+        ):
+            time.sleep(max(0.0, at_s - loop.status.ticks / 1000))
+            rig.fault(fault, *args)
+
+    result = run(tmp_path, "faults.mcap", 2.5, scenario="paper-body", during=inject)
+    faults = [e for e in result.events if e.kind == EventKind.FAULT]
+    sources = [e.source for e in faults]
+    assert "wrist F/T sensor" in sources
+    assert "robot joint state" in sources
+    assert "joint targets" in sources
+    assert result.summary.hold_ticks >= 50
+    assert result.summary.ticks == pytest.approx(2500, rel=0.02)
+    recorded = load(result.path, topics=["/events"])["/events"]
+    assert len(recorded) == len(result.events)
+
+
+def test_a_killed_recorder_loses_at_most_half_a_second(tmp_path: Path) -> None:
+    recorders: list[RecorderProcess] = []
+    ticks_at_kill: list[int] = []
+
+    def kill(rig: RigProcess, loop: ControlLoop, stop: threading.Event) -> None:
+        time.sleep(1.0)
+        ticks_at_kill.append(loop.status.ticks)
+        pid = recorders[0].pid
+        assert pid is not None
+        os.kill(pid, signal.SIGKILL)
+
+    # the rings hold 2 s: 2.5 s after the kill they have overflowed
+    result = run(tmp_path, "killed.mcap", 3.5, during=kill, recorders=recorders)
+    assert result.drops > 0  # counted, and the loop went on
+    assert result.messages_written is None
+    assert result.recorder_error.startswith(f"recorder of {result.path}: exited with code -9")
+    assert result.summary.ticks == pytest.approx(3500, rel=0.02)
+    recover(result.path, tmp_path / "recovered.mcap")
+    diagnostics = load(tmp_path / "recovered.mcap", topics=["/diagnostics/loop"])
+    last_tick = int(diagnostics["/diagnostics/loop"]["tick"].to_numpy()[-1])
+    lost_s = (ticks_at_kill[0] - last_tick) / 1000
+    assert 0 <= lost_s <= 0.5
