@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hilrig.rig.recorder import RecorderProcess
 
 from hilrig.control import combine, preset, simulate
 from hilrig.recording import load, recover
 from hilrig.recording.samples import EventKind
 from hilrig.rig.loop import ControlLoop
+from hilrig.rig.recorder import RecorderProcess
 from hilrig.rig.rig_process import RigProcess
 from hilrig.rig.session import SessionConfig, SessionResult, record_session
 
