@@ -140,6 +140,7 @@ class ControlLoop:
         self._stale_ns = config.stale_after_ticks * config.period_ns
         # preallocated tick buffers
         self._force = np.zeros(9)
+        self._fresh = np.zeros(9)
         self._wrench = np.zeros(6)
         self._x_r = np.eye(4)
         self._q_ik = np.zeros(JOINTS)
@@ -230,12 +231,16 @@ class ControlLoop:
             assert sample is not None and robot is not None
             r_base_sensor = self._model.fk(np.asarray(robot.state.q_rad))[:3, :3]
             self._compensator.compensate(sample.wrench_in_sensor, r_base_sensor, out=self._wrench)
-            np.matmul(r_base_sensor, self._wrench[:3], out=self._force[:3])
+            np.matmul(r_base_sensor, self._wrench[:3], out=self._fresh[:3])
+            self._fresh[3:] = robot.state.torque_nm
+            # drivers reject non-finite values; anything that still overflows here is stale
+            fresh = bool(np.isfinite(self._fresh).all() and np.isfinite(self._wrench).all())
+        if fresh:
+            self._force[:] = self._fresh
             np.matmul(r_base_sensor, self._wrench[3:], out=self._moment)
-            self._force[3:] = robot.state.torque_nm
             if not self._stopped and self._safety.stop_required(self._force[:3], self._force[3:]):
                 self._stopped = True
-                norm_n = math.sqrt(float(self._force[:3] @ self._force[:3]))
+                norm_n = math.hypot(*self._force[:3])
                 self._events.fault(
                     "safety", "protective limit: robot stopped", start_ns, value=norm_n
                 )
@@ -319,7 +324,7 @@ class ControlLoop:
         status.ticks = summary.ticks
         status.lateness_us = lateness_ns / 1000
         force, offset = self._force, controller.offset
-        status.force_n = math.sqrt(force[0] ** 2 + force[1] ** 2 + force[2] ** 2)
-        status.offset_mm = 1000 * math.sqrt(offset[0] ** 2 + offset[1] ** 2 + offset[2] ** 2)
+        status.force_n = math.hypot(force[0], force[1], force[2])
+        status.offset_mm = 1000 * math.hypot(offset[0], offset[1], offset[2])
         status.drops = 0 if feed is None else feed.drops
         status.stopped = self._stopped
