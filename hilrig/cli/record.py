@@ -1,6 +1,7 @@
 """``hilrig record``: run and record one volunteer collision session."""
 
 import signal
+import sys
 import threading
 import time
 import tomllib
@@ -10,7 +11,6 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
-from rich.live import Live
 from rich.text import Text
 
 from hilrig.cli.app import app
@@ -119,38 +119,47 @@ def record(
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
-    live = Live(Text("starting the rig..."), console=console, refresh_per_second=4, transient=True)
     started = time.monotonic()
+    loop_box: list[ControlLoop] = []
+    pending: deque[tuple[float, EventRecord]] = deque()  # the tick appends, never prints
+    done = threading.Event()
+    show_status = sys.stderr.isatty()
+
+    def print_progress() -> None:
+        """Events as they come and, on a terminal, one status line twice a second."""
+        while True:
+            finished = done.wait(0.5)
+            while pending:  # drained once more after the session ends: no event left unprinted
+                t_s, record = pending.popleft()
+                where = f" ({record.axis})" if record.axis else ""
+                text = f"{t_s:7.2f} s  {record.kind.name.lower()}: {record.source}{where}"
+                line = f"{text} {record.detail}".rstrip()
+                sys.stderr.write(f"\r\033[K{line}\n" if show_status else f"{line}\n")
+            if finished:
+                return
+            if show_status and loop_box:
+                sys.stderr.write(f"\r\033[K{status_line(loop_box[0], started).plain}")
+            sys.stderr.flush()
 
     def on_start(loop: ControlLoop) -> None:
         nonlocal started
         started = time.monotonic()
-        live.get_renderable = lambda: status_line(loop, started)  # type: ignore[method-assign]
+        loop_box.append(loop)
 
-    pending: deque[tuple[float, EventRecord]] = deque()  # the tick appends, never prints
-
-    def print_events() -> None:
-        while not done.wait(0.1):
-            while pending:
-                t_s, record = pending.popleft()
-                where = f" ({record.axis})" if record.axis else ""
-                text = f"{t_s:7.2f} s  {record.kind.name.lower()}: {record.source}{where}"
-                live.console.print(f"{text} {record.detail}".rstrip(), highlight=False)
-
-    done = threading.Event()
-    printer = threading.Thread(target=print_events, daemon=True, name="events")
+    printer = threading.Thread(target=print_progress, daemon=True, name="progress")
     printer.start()
     try:
-        with live:
-            result = record_session(
-                session,
-                stop=stop,
-                on_start=on_start,
-                on_event=lambda r: pending.append((time.monotonic() - started, r)),
-            )
+        result = record_session(
+            session,
+            stop=stop,
+            on_start=on_start,
+            on_event=lambda r: pending.append((time.monotonic() - started, r)),
+        )
     finally:
         done.set()
-        printer.join(timeout=1)
+        printer.join(timeout=2)
+        if show_status:
+            sys.stderr.write("\r\033[K")
     print_result(console, result)
     if result.recorder_error:
         raise HilrigError(f"the recording is incomplete: {result.recorder_error}")
