@@ -15,6 +15,7 @@ from hilrig.paper.report import rich_table
 from hilrig.paper.reproduce import reproduce
 from hilrig.recording import load
 from hilrig.rig.loop import LoopConfig
+from hilrig.rig.records import AXIS_NAMES
 from hilrig.rig.session import SessionConfig, record_session
 
 DEMO_SUBJECT = "D001"  # a pseudonym reserved for demonstrations
@@ -24,13 +25,10 @@ SESSIONS = (  # (scenario, trajectory, seconds): each collision ends ~2 s before
 )
 
 
-def peak_offsets(path: Path) -> tuple[list[str], list[float]]:
-    """Axis names and the largest |offset| per axis recorded on /controller/state (m or rad)."""
+def peak_offsets(path: Path) -> list[float]:
+    """The largest |offset| per axis (AXIS_NAMES order) recorded on /controller/state, m or rad."""
     state = load(path, topics=["/controller/state"])["/controller/state"]
-    columns = [c for c in state.columns if c.startswith("offset_") and "rate" not in c]
-    return [c.removeprefix("offset_") for c in columns], [
-        float(np.abs(state[c]).max()) for c in columns
-    ]
+    return [float(np.abs(state[f"offset_{i}"]).max()) for i in range(len(AXIS_NAMES))]
 
 
 @app.command()
@@ -45,7 +43,9 @@ def demo(
     console.print(rich_table(reproduction.sections[0]))
     console.print(f"paper tables and figures in {out / 'paper'}\n", highlight=False)
     peaks = Table(title="recorded sessions: largest offset per axis (mm, mrad)")
-    peaks.add_column("session")
+    peaks.add_column("session", no_wrap=True)
+    for name in AXIS_NAMES:
+        peaks.add_column(name, justify="right")
     for scenario, trajectory, seconds in SESSIONS:
         console.print(f"[bold]session {scenario}[/] ({trajectory} task, {seconds:g} s)")
         result = record_session(
@@ -61,9 +61,5 @@ def demo(
             stop=threading.Event(),
         )
         print_result(console, result)
-        names, values = peak_offsets(result.path)
-        if len(peaks.columns) == 1:
-            for name in names:
-                peaks.add_column(name, justify="right")
-        peaks.add_row(scenario, *(f"{1000 * v:.1f}" for v in values))
+        peaks.add_row(scenario, *(f"{1000 * v:.1f}" for v in peak_offsets(result.path)))
     console.print(peaks)

@@ -7,7 +7,7 @@ import time
 import tomllib
 from collections import deque
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.console import Console
@@ -22,10 +22,18 @@ from hilrig.rig.loop import ControlLoop, LoopConfig
 from hilrig.rig.session import SessionConfig, SessionResult, record_session
 
 
-def endpoints_from_toml(path: Path) -> RigEndpoints:
-    """The real rig's endpoints from a TOML file (``[endpoints]`` table; see ``--help``)."""
+def read_config(path: Path) -> dict[str, Any]:
+    """A session config file (TOML); raises HilrigError naming the file."""
     try:
-        table = tomllib.loads(path.read_text())["endpoints"]
+        return tomllib.loads(path.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as err:
+        raise HilrigError(f"{path}: cannot read the config ({err})") from err
+
+
+def endpoints_from_config(path: Path, config: dict[str, Any]) -> RigEndpoints:
+    """The real rig's endpoints from the config's ``[endpoints]`` table."""
+    try:
+        table = config["endpoints"]
         robot_host, robot_port = str(table["robot_state"]).rsplit(":", 1)
         modbus_host, modbus_port = str(table["modbus"]).rsplit(":", 1)
         return RigEndpoints(
@@ -33,8 +41,8 @@ def endpoints_from_toml(path: Path) -> RigEndpoints:
             (robot_host, int(robot_port)),
             (modbus_host, int(modbus_port)),
         )
-    except (OSError, tomllib.TOMLDecodeError, KeyError, ValueError) as err:
-        raise HilrigError(f"{path}: not a rig config with an [endpoints] table ({err})") from err
+    except (KeyError, ValueError, TypeError) as err:
+        raise HilrigError(f"{path}: no valid [endpoints] table ({err})") from err
 
 
 def status_line(loop: ControlLoop, started: float) -> Text:
@@ -81,8 +89,10 @@ def record(
     config: Annotated[
         Path | None,
         typer.Option(
-            help="TOML with the real rig's [endpoints]: ft_wrist_port = '/dev/ttyUSB0', "
-            "robot_state = 'host:8002', modbus = 'host:502' (RTU over TCP)."
+            help="TOML: [endpoints] of a real rig (ft_wrist_port = '/dev/ttyUSB0', robot_state = "
+            "'host:8002', modbus = 'host:502', RTU over TCP) and/or [trajectory] (name = "
+            "'waypoints', points = [[t_s, dx_m, dy_m, dz_m], ...], or another trajectory's "
+            "options)."
         ),
     ] = None,
     controller: Annotated[str, typer.Option(help="Law: fixed, variable-stiffness, adaptive.")] = (
@@ -93,7 +103,9 @@ def record(
     scenario: Annotated[
         str, typer.Option(help=f"Volunteer model (emulated rig): {', '.join(sorted(SCENARIOS))}.")
     ] = "paper-end-effector",
-    trajectory: Annotated[str, typer.Option(help="Task: circle, square, hold.")] = "circle",
+    trajectory: Annotated[
+        str, typer.Option(help="Task: circle, square, waypoints (points from --config), hold.")
+    ] = "circle",
     duration: Annotated[float, typer.Option(help="Seconds; Ctrl-C ends earlier, cleanly.")] = 20.0,
     rate: Annotated[float, typer.Option(help="Loop rate, Hz (the paper used 500).")] = 1000.0,
     out: Annotated[Path | None, typer.Option(help="The MCAP file to write.")] = None,
@@ -102,6 +114,9 @@ def record(
     console = Console(soft_wrap=True)
     if rig == "aubo" and config is None:
         raise HilrigError("--rig aubo needs --config with the rig's endpoints")
+    settings = read_config(config) if config is not None else {}
+    trajectory_options = dict(settings.get("trajectory", {}))
+    trajectory = str(trajectory_options.pop("name", trajectory))
     path = out or Path("recordings") / f"{subject}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
     path.parent.mkdir(parents=True, exist_ok=True)
     session = SessionConfig(
@@ -109,9 +124,14 @@ def record(
         subject_id=subject,
         scenario=scenario,
         rig=rig,
-        endpoints=endpoints_from_toml(config) if config is not None else None,
+        endpoints=(
+            endpoints_from_config(config, settings)
+            if config is not None and "endpoints" in settings
+            else None
+        ),
         duration_s=duration,
         trajectory=trajectory,
+        trajectory_options=trajectory_options,
         loop=LoopConfig(
             rate_hz=rate, law=controller, cartesian_params=params, joint_params=joint_params
         ),

@@ -62,3 +62,7 @@ class EventDetector:
     def fault(self, source: str, detail: str, t_ns: int, *, value: float = float("nan")) -> None:
         """Any other fault, emitted as given."""
         self._emit(EventRecord(t_ns, EventKind.FAULT, source, detail, value=value))
+
+    def mark(self, source: str, detail: str, t_ns: int) -> None:
+        """An operator or session mark (not a fault)."""
+        self._emit(EventRecord(t_ns, EventKind.OPERATOR_MARK, source, detail))

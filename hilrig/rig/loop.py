@@ -170,6 +170,7 @@ class ControlLoop:
         self._q_ik[:] = robot.state.q_rad
         self._q_cmd[:] = robot.state.q_rad
         self._x_r[:] = self._model.fk(self._q_ik)
+        self._warm_up()
         timer = DeadlineTimer(self.config.period_ns, spin_ns=self.config.spin_us * 1000)
         summary = self.summary
         with realtime_python():  # first: its one garbage collection must not delay tick 1
@@ -189,6 +190,15 @@ class ControlLoop:
         summary.skipped_ticks = timer.skipped
         self._targets.write(self._q_cmd, Mode.HOLD)
         return summary
+
+    def _warm_up(self) -> None:
+        """Pay every first-call cost before the first deadline, not on tick 1: the compiled
+        kernel's load, IK's first solve, and the event queue's feeder thread (started by the
+        session-start event)."""
+        self._controller.step(np.zeros(9))
+        self._controller.reset()
+        self._model.ik(self._x_r, self._q_ik, max_iterations=1)
+        self._events.mark("loop", "session started at the start pose", time.monotonic_ns())
 
     def tick(self, start_ns: int, lateness_ns: int, timer: DeadlineTimer) -> None:
         """One control tick started at ``start_ns`` (monotonic), ``lateness_ns`` after deadline."""

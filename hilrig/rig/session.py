@@ -53,6 +53,7 @@ class SessionConfig:
     endpoints: RigEndpoints | None = None
     duration_s: float | None = 20.0
     trajectory: str = "circle"
+    trajectory_options: dict[str, object] = field(default_factory=dict)  # e.g. waypoints' points
     loop: LoopConfig = field(default_factory=LoopConfig)
     tool: ToolLoad = EMULATED_TOOL
     tare_s: float = 0.2
@@ -167,7 +168,7 @@ def record_session(
             robot=robot,
             targets=targets,
             compensator=compensator,
-            trajectory=make_trajectory(config.trajectory, start_pose),
+            trajectory=make_trajectory(config.trajectory, start_pose, **config.trajectory_options),
             safety=SafetyClamp(SafetyConfig(dt_s=1.0 / config.loop.rate_hz), model, q0),
             model=model,
             feed=feed,

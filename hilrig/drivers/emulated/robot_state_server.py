@@ -60,6 +60,7 @@ class EmulatedRobotStateServer:
         self._stall_until_ns = 0
         self._garbage = bytearray()
         self._drop = False
+        self._down_until_ns = 0
         self._thread = threading.Thread(target=self._run, daemon=True, name="robot-state")
         self.stats = ServerStats()
 
@@ -80,10 +81,12 @@ class EmulatedRobotStateServer:
     def __exit__(self, *_: object) -> None:
         self.stop()
 
-    def drop_links(self) -> None:
-        """Close every client connection (they may reconnect)."""
+    def drop_links(self, down_s: float = 0.0) -> None:
+        """Close every client connection; for ``down_s`` the robot then stays silent (new
+        connections wait in the listen backlog), like a cable pulled and plugged back."""
         with self._lock:
             self._drop = True
+            self._down_until_ns = time.monotonic_ns() + round(down_s * 1e9)
 
     def stall(self, duration_s: float) -> None:
         """Send nothing for ``duration_s`` (frames of that time are skipped, not queued)."""
@@ -99,13 +102,16 @@ class EmulatedRobotStateServer:
         sequence = 0
         deadline = time.monotonic_ns()
         while not self._stop.is_set():
-            self._accept()
             with self._lock:
-                stalled = time.monotonic_ns() < self._stall_until_ns
+                now = time.monotonic_ns()
+                down = now < self._down_until_ns
+                stalled = now < self._stall_until_ns or down
                 extra, self._garbage = bytes(self._garbage), bytearray()
                 drop, self._drop = self._drop, False
             if drop:
                 self._close_all()
+            if not down:
+                self._accept()
             if not stalled:
                 self._send(extra + encode(self._source(sequence)))
                 self.stats.ticks += 1
