@@ -105,7 +105,8 @@ def test_faults_hold_the_robot_and_are_logged_while_the_loop_keeps_ticking(
             ("modbus.inject_exceptions", (1,), 1.5),
             ("robot_state.drop_links", (0.1,), 2.0),
         ):
-            time.sleep(max(0.0, at_s - loop.status.ticks / 1000))
+            while loop.status.ticks < at_s * 1000:  # session time, however long warm-up took
+                time.sleep(0.001)
             rig.fault(fault, *args)
 
     result = run(tmp_path, "faults.mcap", 3.0, scenario="paper-body", during=inject)
@@ -128,7 +129,8 @@ def test_a_killed_recorder_loses_at_most_half_a_second(tmp_path: Path) -> None:
     ticks_at_kill: list[int] = []
 
     def kill(rig: RigProcess, loop: ControlLoop, stop: threading.Event) -> None:
-        time.sleep(1.0)
+        while loop.status.ticks < 1000:  # 1 s into the session, however long warm-up took
+            time.sleep(0.001)
         ticks_at_kill.append(loop.status.ticks)
         pid = recorders[0].pid
         assert pid is not None
