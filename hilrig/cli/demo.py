@@ -42,10 +42,7 @@ def demo(
     reproduction = reproduce(out / "paper")
     console.print(rich_table(reproduction.sections[0]))
     console.print(f"paper tables and figures in {out / 'paper'}\n", highlight=False)
-    peaks = Table(title="recorded sessions: largest offset per axis (mm, mrad)")
-    peaks.add_column("session", no_wrap=True)
-    for name in AXIS_NAMES:
-        peaks.add_column(name, justify="right")
+    peaks: dict[str, list[float]] = {}
     for scenario, trajectory, seconds in SESSIONS:
         console.print(f"[bold]session {scenario}[/] ({trajectory} task, {seconds:g} s)")
         result = record_session(
@@ -61,5 +58,12 @@ def demo(
             stop=threading.Event(),
         )
         print_result(console, result)
-        peaks.add_row(scenario, *(f"{1000 * v:.1f}" for v in peak_offsets(result.path)))
-    console.print(peaks)
+        peaks[scenario] = peak_offsets(result.path)
+    table = Table(title="recorded sessions: largest offset per axis")
+    table.add_column("axis")
+    for scenario in peaks:
+        table.add_column(scenario, justify="right")
+    for i, name in enumerate(AXIS_NAMES):
+        unit = "mm" if i < 3 else "mrad"
+        table.add_row(f"{name} ({unit})", *(f"{1000 * p[i]:.1f}" for p in peaks.values()))
+    console.print(table)
