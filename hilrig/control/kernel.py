@@ -156,6 +156,21 @@ def gains(
             k_out[n, i] = k
 
 
+@njit(cache=True, inline="always")
+def advance(S: NDArray[np.float64], out: NDArray[np.float64], n: int, i: int, f: float) -> None:
+    """Integrate axis i over tick n with its cached Phi, Gamma; write the tick's outputs."""
+    e = S[E, i]
+    v = S[V, i]
+    e_next = S[P00, i] * e + S[P01, i] * v + S[G0, i] * f
+    v_next = S[P10, i] * e + S[P11, i] * v + S[G1, i] * f
+    S[E, i] = e_next
+    S[V, i] = v_next
+    out[OUT_OFFSET, n, i] = e_next
+    out[OUT_VELOCITY, n, i] = v_next
+    out[OUT_DAMPING, n, i] = S[B, i]
+    out[OUT_STIFFNESS, n, i] = S[K, i]
+
+
 @njit(cache=True)
 def run(
     force: NDArray[np.float64],
@@ -195,17 +210,7 @@ def run(
                 any_above = True
         if not any_above and busy == 0 and (sm or law == FIXED):
             for i in range(A):
-                e = S[E, i]
-                v = S[V, i]
-                f = force[n, i]
-                e_next = S[P00, i] * e + S[P01, i] * v + S[G0, i] * f
-                v_next = S[P10, i] * e + S[P11, i] * v + S[G1, i] * f
-                S[E, i] = e_next
-                S[V, i] = v_next
-                out[OUT_OFFSET, n, i] = e_next
-                out[OUT_VELOCITY, n, i] = v_next
-                out[OUT_DAMPING, n, i] = S[B, i]
-                out[OUT_STIFFNESS, n, i] = S[K, i]
+                advance(S, out, n, i, force[n, i])
                 contact[n, i] = FREE
             continue
         for g in range(A):
@@ -268,16 +273,7 @@ def run(
                 discretise(P, S, i, b, k, zoh)
                 S[B, i] = b
                 S[K, i] = k
-            e = S[E, i]
-            v = S[V, i]
-            e_next = S[P00, i] * e + S[P01, i] * v + S[G0, i] * f
-            v_next = S[P10, i] * e + S[P11, i] * v + S[G1, i] * f
-            S[E, i] = e_next
-            S[V, i] = v_next
-            out[OUT_OFFSET, n, i] = e_next
-            out[OUT_VELOCITY, n, i] = v_next
-            out[OUT_DAMPING, n, i] = b
-            out[OUT_STIFFNESS, n, i] = k
+            advance(S, out, n, i, f)
             contact[n, i] = state
         busy = 0
         if sm:
