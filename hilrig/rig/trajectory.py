@@ -131,10 +131,10 @@ def ramped_time_s(t_s: float, ramp_s: float) -> float:
     return ramp_s * tau**4 * (2.5 + tau * (-3.0 + tau))
 
 
-@dataclass(frozen=True, slots=True)
-class Hold:
-    """Stay at the start pose."""
+class _StartOrientation:
+    """The fixed orientation every trajectory keeps: its start pose's."""
 
+    __slots__ = ()
     start: Start
 
     @property
@@ -144,6 +144,13 @@ class Hold:
     @property
     def orientation(self) -> NDArray[np.float64]:
         return self.start.orientation
+
+
+@dataclass(frozen=True, slots=True)
+class Hold(_StartOrientation):
+    """Stay at the start pose."""
+
+    start: Start
 
     @property
     def duration_s(self) -> float:
@@ -155,7 +162,7 @@ class Hold:
 
 
 @dataclass(frozen=True, slots=True)
-class Circle:
+class Circle(_StartOrientation):
     """A circle through the start: centre (m), unit plane normal, radius (m), period (s).
 
     Position at phase phi: ``centre + radius (cos(phi) u + sin(phi) w)`` with ``u`` the unit
@@ -171,14 +178,6 @@ class Circle:
     ramp_s: float
     u: Vec3
     w: Vec3
-
-    @property
-    def rotation(self) -> NDArray[np.float64]:
-        return self.start.rotation
-
-    @property
-    def orientation(self) -> NDArray[np.float64]:
-        return self.start.orientation
 
     @property
     def duration_s(self) -> float:
@@ -197,7 +196,7 @@ class Circle:
 
 
 @dataclass(frozen=True, slots=True)
-class Waypoints:
+class Waypoints(_StartOrientation):
     """Rest-to-rest minimum-jerk moves through positions (m, base frame) at times (s).
 
     ``times_s`` starts at 0 with the start position; a ``cyclic`` path (last point = first)
@@ -208,14 +207,6 @@ class Waypoints:
     times_s: tuple[float, ...]
     points_m: tuple[Vec3, ...]
     cyclic: bool
-
-    @property
-    def rotation(self) -> NDArray[np.float64]:
-        return self.start.rotation
-
-    @property
-    def orientation(self) -> NDArray[np.float64]:
-        return self.start.orientation
 
     @property
     def duration_s(self) -> float:
