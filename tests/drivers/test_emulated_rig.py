@@ -1,9 +1,9 @@
 """The whole emulated rig, read and driven through its three real transports."""
 
 import time
-from collections.abc import Callable
 
 import numpy as np
+from waiting import wait_until
 
 from hilrig.drivers.emulated.rig import HOME_Q_RAD, EmulatedRig, RigConfig
 from hilrig.drivers.emulated.scenarios import HandContact, PaperBody, PaperEndEffector, scenario
@@ -15,14 +15,6 @@ from hilrig.drivers.robot_state_codec import RobotStatus
 from hilrig.errors import HilrigError
 from hilrig.paper.profiles import end_effector_force, joint_torque
 from hilrig.robot import RobotModel
-
-
-def wait_until(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not reached")
-        time.sleep(0.002)
 
 
 def collect(sensor: FtSerial, count: int) -> list:

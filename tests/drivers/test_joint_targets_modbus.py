@@ -2,24 +2,16 @@
 
 import struct
 import threading
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import pytest
 from pymodbus.constants import ExcCodes
+from waiting import wait_until
 
 from hilrig.drivers.emulated.modbus_server import EmulatedModbusServer
 from hilrig.drivers.joint_targets import JointTargetsWriter, ModbusEndpoint
 from hilrig.drivers.joint_targets_map import JointTargets, Mode, RegisterMap
 from hilrig.errors import LinkError, ModbusExceptionError
-
-
-def wait_until(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not reached")
-        time.sleep(0.002)
 
 
 class Received:

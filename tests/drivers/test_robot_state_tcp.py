@@ -1,20 +1,11 @@
 """The joint-state stream between the client driver and the emulator, over loopback TCP."""
 
-import time
-from collections.abc import Callable
+from waiting import wait_until
 
 from hilrig.drivers.emulated.robot_state_server import EmulatedRobotStateServer
 from hilrig.drivers.robot_state import RobotStateClient
 from hilrig.drivers.robot_state_codec import MAGIC, RobotState, RobotStatus
 from hilrig.errors import LinkError
-
-
-def wait_until(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not reached")
-        time.sleep(0.002)
 
 
 def source(sequence: int) -> RobotState:
