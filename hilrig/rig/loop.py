@@ -37,6 +37,7 @@ from hilrig.rig.records import JOINTS
 from hilrig.rig.safety import SafetyClamp
 from hilrig.rig.timing import DeadlineTimer, LatencyHistogram, realtime_python
 from hilrig.rig.trajectory import Trajectory
+from hilrig.rig.virtual import VirtualInput
 from hilrig.robot import RobotModel
 
 COMMAND_FAULT_HOLD_NS = 50_000_000  # after a failed joint-target write, hold this long
@@ -119,6 +120,7 @@ class ControlLoop:
         model: RobotModel,
         feed: RecorderFeed | None = None,
         on_event: Callable[[EventRecord], None] | None = None,
+        virtual: VirtualInput | None = None,
     ) -> None:
         self.config = config
         self._sensor = sensor
@@ -135,6 +137,8 @@ class ControlLoop:
         self._zeta = np.zeros(9)
         self._events = EventDetector(on_event=self._event)
         self._on_event = on_event
+        self._virtual = virtual
+        self._playing = False
         self.status = LoopStatus()
         self.summary = LoopSummary()
         self._stale_ns = config.stale_after_ticks * config.period_ns
@@ -243,6 +247,8 @@ class ControlLoop:
             self._compensator.compensate(sample.wrench_in_sensor, r_base_sensor, out=self._wrench)
             np.matmul(r_base_sensor, self._wrench[:3], out=self._fresh[:3])
             self._fresh[3:] = robot.state.torque_nm
+            if self._virtual is not None:
+                self._play(t_s, start_ns)
             # drivers reject non-finite values; anything that still overflows here is stale
             fresh = bool(np.isfinite(self._fresh).all() and np.isfinite(self._wrench).all())
         if fresh:
@@ -288,6 +294,15 @@ class ControlLoop:
         self._track_latency()
         self.status.holding = holding
         self._log_tick(start_ns, lateness_ns, timer)
+
+    def _play(self, t_s: float, t_ns: int) -> None:
+        """Add the virtual collision's row for ``t_s`` to the fresh input; mark start and end."""
+        assert self._virtual is not None
+        playing = self._virtual.add_to(t_s, self._fresh)
+        if playing != self._playing:
+            self._playing = playing
+            what = "started" if playing else "ended"
+            self._events.mark("virtual collision", f"playback {what}", t_ns)
 
     def _track_latency(self) -> None:
         """Sensor-to-command: F/T arrival of the input of the last acknowledged write -> ack."""

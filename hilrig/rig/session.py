@@ -9,12 +9,13 @@ recording is closed cleanly: the ExitStack unwinds in reverse order.
 
 from __future__ import annotations
 
+import io
 import json
 import threading
 import time
 from collections.abc import Callable
 from contextlib import ExitStack
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +35,7 @@ from hilrig.rig.records import AXIS_NAMES
 from hilrig.rig.rig_process import RigProcess
 from hilrig.rig.safety import SafetyClamp, SafetyConfig
 from hilrig.rig.trajectory import make_trajectory
+from hilrig.rig.virtual import VirtualInput
 from hilrig.robot import RobotModel
 
 EMULATED_TOOL = ToolLoad(mass_kg=0.5, com_in_sensor_m=(0.0, 0.0, 0.05))
@@ -58,12 +60,33 @@ class SessionConfig:
     tool: ToolLoad = EMULATED_TOOL
     tare_s: float = 0.2
     session_id: str = ""
+    virtual: VirtualInput | None = None  # a recorded trace played as a virtual collision
+    virtual_source: str = ""  # where that trace came from (file, start, duration)
 
     def as_json(self) -> str:
-        """The configuration as JSON, attached to the recording."""
-        record = asdict(self)
+        """The configuration as JSON, attached to the recording (the virtual trace summarised;
+        its values are attached as virtual_input.npy)."""
+        record = asdict(replace(self, virtual=None))
         record["out"] = str(self.out)
+        if self.virtual is not None:
+            record["virtual"] = {
+                "rows": self.virtual.force.shape[0],
+                "dt_s": self.virtual.dt_s,
+                "delay_s": self.virtual.delay_s,
+            }
         return json.dumps(record, indent=2, default=str, sort_keys=True)
+
+    def attachments(self) -> list[Attachment]:
+        """The config (JSON), the scenario name and, when one plays, the virtual trace (.npy)."""
+        files = [
+            Attachment("config.json", "application/json", self.as_json().encode()),
+            Attachment("scenario.txt", "text/plain", self.scenario.encode()),
+        ]
+        if self.virtual is not None:
+            buffer = io.BytesIO()
+            np.save(buffer, self.virtual.force)
+            files.append(Attachment("virtual_input.npy", "application/x-npy", buffer.getvalue()))
+        return files
 
 
 @dataclass
@@ -147,10 +170,7 @@ def record_session(
             info,
             feed=feed,
             urdf=model.urdf_xml,
-            attachments=[
-                Attachment("config.json", "application/json", config.as_json().encode()),
-                Attachment("scenario.txt", "text/plain", config.scenario.encode()),
-            ],
+            attachments=config.attachments(),
             calibration={
                 "bias_in_sensor": compensator.bias_in_sensor.tolist(),
                 "tool_mass_kg": config.tool.mass_kg,
@@ -173,6 +193,7 @@ def record_session(
             model=model,
             feed=feed,
             on_event=collect,
+            virtual=config.virtual,
         )
         if on_start is not None:
             on_start(loop)

@@ -1,0 +1,59 @@
+"""A recorded trace played into the live loop as a virtual collision (HIL replay)."""
+
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hilrig.errors import HilrigError
+from hilrig.recording import load
+from hilrig.recording.samples import EventKind
+from hilrig.rig.session import SessionConfig, record_session
+from hilrig.rig.virtual import VirtualInput
+
+
+def test_rows_play_at_their_times_and_only_then() -> None:
+    trace = VirtualInput(np.arange(9.0 * 4).reshape(4, 9), dt_s=0.5, delay_s=1.0)
+    out = np.zeros(9)
+    assert not trace.add_to(0.99, out) and not out.any()
+    assert trace.add_to(1.0, out) and out.tolist() == list(range(9))
+    out[:] = 1.0
+    assert trace.add_to(2.6, out) and out[0] == 1.0 + 27.0  # row 3 holds for 0.5 s from 2.5 s
+    assert not trace.add_to(3.0, out)  # after the last row
+    assert trace.duration_s == 2.0
+
+
+def test_from_columns_cuts_and_maps_axes() -> None:
+    t_s = np.arange(0.0, 10.0, 0.002)
+    trace = VirtualInput.from_columns(
+        t_s, {"y": np.sin(t_s), "joint2": np.ones_like(t_s)}, start_s=4.0, duration_s=2.0
+    )
+    assert trace.force.shape == (1000, 9) and trace.dt_s == pytest.approx(0.002)
+    np.testing.assert_array_equal(trace.force[:, 1], np.sin(t_s[2000:3000]))
+    assert (trace.force[:, 4] == 1.0).all() and not trace.force[:, [0, 2, 3, 5, 6, 7, 8]].any()
+    with pytest.raises(HilrigError, match=r"^virtual input: unknown axes \['fx'\]"):
+        VirtualInput.from_columns(t_s, {"fx": t_s})
+
+
+def test_a_virtual_collision_makes_the_robot_yield_and_replays_exactly(tmp_path: Path) -> None:
+    push = np.zeros((1000, 9))
+    push[:, 1] = 4.0 * np.sin(np.linspace(0.0, np.pi, 1000))  # a 1 s, 4 N push along +y
+    result = record_session(
+        SessionConfig(
+            out=tmp_path / "virtual.mcap",
+            subject_id="S003",
+            scenario="paper-body",  # its own torques come at 3.5 s; the push plays at 0.5 s
+            duration_s=2.5,
+            trajectory="hold",
+            virtual=VirtualInput(push, dt_s=0.001, delay_s=0.5),
+        ),
+        stop=threading.Event(),
+    )
+    marks = [e.detail for e in result.events if e.kind == EventKind.OPERATOR_MARK]
+    assert "playback started" in marks and "playback ended" in marks
+    state = load(result.path, topics=["/controller/state"])["/controller/state"]
+    t = (state.index.to_numpy() - state.index[0]) / 1e9
+    during = (t > 0.6) & (t < 1.4)
+    assert state.loc[during, "force_1"].max() > 3.5  # the controller saw the push
+    assert state["offset_1"].max() > 0.01  # and the robot yielded by more than 1 cm in +y
