@@ -48,3 +48,7 @@ class ModbusExceptionError(DriverError):
 
 class RobotModelError(HilrigError, ValueError):
     """A robot model cannot be built or was called with inputs of the wrong shape."""
+
+
+class AnalysisError(HilrigError):
+    """Sessions or replay results cannot be analysed as asked; the message names what and why."""

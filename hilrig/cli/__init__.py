@@ -9,6 +9,7 @@ from rich.console import Console
 from rich.text import Text
 
 from hilrig.cli import (  # noqa: F401  (register their commands)
+    analyze,
     demo,
     paper,
     record,

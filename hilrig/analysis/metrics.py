@@ -1,0 +1,240 @@
+"""Metrics of each collision event on each axis of its group, and tracking outside events.
+
+Units follow the axis: Cartesian axes (x, y, z) in N, N*s, m, m/s; joints in N*m, N*m*s, rad,
+rad/s; times in s. :func:`unit` names the unit of any metric on any group.
+
+An event's window on an axis runs from its start to the next event of the same group (or the
+end of the data): the offset keeps moving after the force is gone, so its largest value and its
+return are looked for there. ``offset[n]`` belongs to the time of tick n + 1 (it is the offset
+commanded at tick n, DESIGN.md's e[n] = e(t_n + dt)).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from hilrig.analysis.events import AxisGroup, CollisionEvent, FloatArray, edge_times, group_of
+from hilrig.analysis.sources import Run
+from hilrig.errors import AnalysisError
+
+# metric -> (unit on Cartesian axes, unit on joints)
+UNITS: dict[str, tuple[str, str]] = {
+    "peak_force": ("N", "N*m"),
+    "impulse": ("N*s", "N*m*s"),
+    "max_offset": ("m", "rad"),
+    "max_abs_offset": ("m", "rad"),
+    "time_to_max_offset_s": ("s", "s"),
+    "recovery_time_s": ("s", "s"),
+    "peak_offset_rate": ("m/s", "rad/s"),
+    "peak_commanded_joint_speed_rad_s": ("rad/s", "rad/s"),
+    "tracking_rms": ("m", "rad"),
+}
+
+
+def unit(metric: str, group: AxisGroup | str) -> str:
+    """The unit of ``metric`` on an axis of ``group``; AnalysisError for an unknown metric."""
+    try:
+        cartesian, joint = UNITS[metric]
+    except KeyError as err:
+        raise AnalysisError(f"unknown metric {metric!r}; known: {', '.join(UNITS)}") from err
+    return cartesian if AxisGroup(group) is AxisGroup.CARTESIAN else joint
+
+
+@dataclass(frozen=True)
+class MetricsConfig:
+    """The recovery band: an offset has recovered once |offset| stays within
+    max(``recovery_floor``, ``recovery_fraction`` * the event's max |offset|); the floor is in m
+    on Cartesian axes and rad on joints (DESIGN.md: 1 mm or 0.001 rad, 2 %)."""
+
+    recovery_floor: float = 1e-3
+    recovery_fraction: float = 0.02
+
+    def __post_init__(self) -> None:
+        for name in ("recovery_floor", "recovery_fraction"):
+            value = getattr(self, name)
+            if not math.isfinite(value) or value < 0:
+                raise AnalysisError(f"{name} must be finite and >= 0, got {value}")
+
+
+DEFAULT_METRICS = MetricsConfig()
+
+
+@dataclass(frozen=True)
+class AxisMetrics:
+    """One run's response to one event on one axis (units: see :data:`UNITS`).
+
+    - ``peak_force``: the force (N or N*m) of largest magnitude during the event, signed.
+    - ``impulse``: the integral of the force over the event, trapezoids on the samples from the
+      last one at or below delta before the start to the first one after the end (so a pulse
+      rising from and falling back to zero is integrated whole), N*s or N*m*s.
+    - ``max_offset`` / ``max_abs_offset``: the offset (m or rad) of largest magnitude in the
+      event's window, signed, and its magnitude.
+    - ``time_to_max_offset_s``: from the event's start to that offset (the response time), s.
+    - ``recovery_time_s``: from the force gone (``end_s``) until |offset| stays within the
+      recovery band for good - through the rest of the window; None if it does not (the data
+      ends or the next event starts first, or the data ends in contact), s.
+    - ``peak_offset_rate``: the largest |offset rate| in the window, m/s or rad/s.
+    - ``peak_commanded_joint_speed_rad_s``: the fastest commanded joint (any joint) in the
+      window, from the commanded joint targets; None where they were not recorded.
+    """
+
+    run: str
+    event: int  # index into the events of the source
+    group: AxisGroup
+    axis: str
+    start_s: float
+    end_s: float
+    peak_force: float
+    impulse: float
+    max_offset: float
+    max_abs_offset: float
+    time_to_max_offset_s: float
+    recovery_time_s: float | None
+    peak_offset_rate: float
+    peak_commanded_joint_speed_rad_s: float | None
+
+
+@dataclass(frozen=True)
+class TrackingMetrics:
+    """How far one run's axis strayed from the task outside its group's events.
+
+    ``tracking_rms`` is the RMS of the offset (m or rad) over the ``samples`` ticks outside
+    every event of the group (recovery included: the robot is off its task until it is back);
+    None when no tick is outside.
+    """
+
+    run: str
+    group: AxisGroup
+    axis: str
+    tracking_rms: float | None
+    samples: int
+
+
+def _next_starts(events: Sequence[CollisionEvent], end_s: float) -> list[float]:
+    """For each event, when the next event of its group starts (``end_s`` if none does)."""
+    following: dict[AxisGroup, float] = {}
+    out = [end_s] * len(events)
+    for n in range(len(events) - 1, -1, -1):
+        out[n] = following.get(events[n].group, end_s)
+        following[events[n].group] = events[n].start_s
+    return out
+
+
+def _commanded_speed(run: Run) -> tuple[FloatArray, FloatArray] | None:
+    """(time of each step, fastest joint's |speed| over the step), s and rad/s."""
+    t, q = run.commanded_t_s, run.commanded_joints_rad
+    if t is None or q is None or t.shape[0] < 2:
+        return None
+    speed = np.abs(np.diff(q, axis=0)) / np.diff(t)[:, None]
+    return t[1:], speed.max(axis=1)
+
+
+def _last_true(mask: np.ndarray) -> np.ndarray:
+    """Per column of ``mask`` (R, k), the last row that is True, -1 where none is."""
+    rows = mask.shape[0]
+    last = rows - 1 - np.argmax(mask[::-1], axis=0)
+    return np.where(mask.any(axis=0), last, -1)
+
+
+def event_metrics(
+    run: Run,
+    events: Sequence[CollisionEvent],
+    config: MetricsConfig = DEFAULT_METRICS,
+) -> tuple[AxisMetrics, ...]:
+    """The metrics of every event on every axis of its group present in ``run``.
+
+    ``events`` are in start order, found on the force that ``run`` saw (possibly another run's
+    copy of the same input); rows come in event then axis order.
+    """
+    t, edges = run.t_s, edge_times(run.t_s)
+    last = t.shape[0]
+    columns = {g: [i for i, a in enumerate(run.axes) if group_of(a) is g] for g in AxisGroup}
+    commanded = _commanded_speed(run)
+    found: list[AxisMetrics] = []
+    for number, (event, next_s) in enumerate(
+        zip(events, _next_starts(events, math.inf), strict=True)
+    ):
+        cols = columns[event.group]
+        if not cols:
+            continue
+        i0 = int(np.searchsorted(t, event.start_s))
+        i1 = int(np.searchsorted(edges, event.end_s))
+        j = int(np.searchsorted(t, next_s))
+        force = run.force[:, cols]
+        during = force[i0:i1]
+        peak = during[np.argmax(np.abs(during), axis=0), np.arange(len(cols))]
+        lo, hi = max(i0 - 1, 0), min(i1, last - 1)
+        impulse = np.atleast_1d(np.trapezoid(force[lo : hi + 1], t[lo : hi + 1], axis=0))
+        window = run.offset[i0:j, cols]
+        n_max = np.argmax(np.abs(window), axis=0)
+        signed = window[n_max, np.arange(len(cols))]
+        largest = np.abs(signed)
+        recovery = _recovery(run.offset[max(i1 - 1, 0) : j, cols], largest, config)
+        rate = np.abs(run.offset_rate[i0:j, cols]).max(axis=0)
+        speed = _peak_speed(commanded, event.start_s, min(next_s, float(edges[-1])))
+        for k, col in enumerate(cols):
+            recovered = recovery[k] if i1 < last else -1
+            found.append(
+                AxisMetrics(
+                    run=run.name,
+                    event=number,
+                    group=event.group,
+                    axis=run.axes[col],
+                    start_s=event.start_s,
+                    end_s=event.end_s,
+                    peak_force=float(peak[k]),
+                    impulse=float(impulse[k]),
+                    max_offset=float(signed[k]),
+                    max_abs_offset=float(largest[k]),
+                    time_to_max_offset_s=float(edges[i0 + n_max[k] + 1] - event.start_s),
+                    recovery_time_s=(
+                        None if recovered < 0 else float(edges[i1 + recovered] - event.end_s)
+                    ),
+                    peak_offset_rate=float(rate[k]),
+                    peak_commanded_joint_speed_rad_s=speed,
+                )
+            )
+    return tuple(found)
+
+
+def _recovery(after: FloatArray, largest: FloatArray, config: MetricsConfig) -> np.ndarray:
+    """Per column, how many rows of ``after`` (from the row whose offset belongs to the force's
+    end) pass before |offset| is inside the band for good; -1 if it never is."""
+    band = np.maximum(config.recovery_floor, config.recovery_fraction * largest)
+    last_out = _last_true(np.abs(after) > band)
+    settled = last_out + 1
+    return np.where(settled < after.shape[0], settled, -1)
+
+
+def _peak_speed(
+    commanded: tuple[FloatArray, FloatArray] | None, start_s: float, stop_s: float
+) -> float | None:
+    if commanded is None:
+        return None
+    times, speed = commanded
+    a, b = np.searchsorted(times, [start_s, stop_s])
+    return float(speed[a:b].max()) if b > a else None
+
+
+def tracking_metrics(run: Run, events: Sequence[CollisionEvent]) -> tuple[TrackingMetrics, ...]:
+    """The tracking RMS of every axis of ``run`` outside its group's events."""
+    edges = edge_times(run.t_s)
+    last = run.t_s.shape[0]
+    outside: dict[AxisGroup, np.ndarray] = {}
+    for group in AxisGroup:
+        spans = [e for e in events if e.group is group]
+        depth = np.zeros(last + 1, dtype=np.int64)
+        np.add.at(depth, np.searchsorted(run.t_s, [e.start_s for e in spans]), 1)
+        np.add.at(depth, np.searchsorted(edges, [e.end_s for e in spans]), -1)
+        outside[group] = np.cumsum(depth[:last]) == 0
+    found = []
+    for col, axis in enumerate(run.axes):
+        group = group_of(axis)
+        free = run.offset[outside[group], col]
+        rms = float(np.sqrt(np.mean(free * free))) if free.size else None
+        found.append(TrackingMetrics(run.name, group, axis, rms, int(free.size)))
+    return tuple(found)

@@ -1,0 +1,106 @@
+"""Analysis results for people (rich tables) and for programs (CSV and Parquet files).
+
+Tables show offsets in mm on Cartesian axes (rad on joints), the way the paper reports them;
+files keep SI units, with the unit of every value in a ``unit`` column.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import pandas as pd
+from rich import box
+from rich.table import Table
+
+from hilrig.analysis.compare import Analysis
+from hilrig.analysis.metrics import unit
+from hilrig.errors import AnalysisError
+
+LABELS = {
+    "max_abs_offset": "max |offset|",
+    "time_to_max_offset_s": "response time",
+    "recovery_time_s": "recovery time",
+    "peak_offset_rate": "peak offset rate",
+    "peak_commanded_joint_speed_rad_s": "peak joint speed",
+    "tracking_rms": "tracking RMS",
+}
+_SHOWN_AS = {"m": ("mm", 1000.0), "m/s": ("mm/s", 1000.0)}  # SI unit -> (display unit, factor)
+FILE_SUFFIXES = (".csv", ".parquet")
+
+
+def _shown(value: float, si_unit: str) -> str:
+    if math.isnan(value):
+        return "-"
+    _, factor = _SHOWN_AS.get(si_unit, (si_unit, 1.0))
+    return f"{value * factor:.4g}"
+
+
+def events_table(analysis: Analysis) -> Table:
+    """The collision events of one source: group, start, end, duration (s) and peak."""
+    table = Table(title="collision events", title_justify="left")
+    for column in ("#", "group", "start s", "end s", "duration s", "peak"):
+        table.add_column(column, justify="left" if column == "group" else "right")
+    for number, event in enumerate(analysis.events):
+        peak = f"{event.peak:.3g} {unit('peak_force', event.group)}"
+        table.add_row(
+            str(number),
+            event.group.value,
+            f"{event.start_s:.3f}",
+            f"{event.end_s:.3f}",
+            f"{event.duration_s:.3f}",
+            peak,
+        )
+    return table
+
+
+def comparison_table(comparison: pd.DataFrame, *, baseline: str, title: str) -> Table:
+    """A :func:`~hilrig.analysis.compare.comparison` in the paper's style: one row per key
+    (event and axis, or axis) and metric, one column per run, each cell the value and its
+    change against ``baseline`` in %; ``n`` values averaged are shown when more than one.
+    A metric with no value in any run (joint speeds where none were recorded) is left out."""
+    keys = [k for k in ("event", "axis") if k in comparison.columns]
+    runs = [str(r) for r in dict.fromkeys(comparison["run"])]
+    table = Table(title=f"{title} (change vs {baseline})", title_justify="left", box=box.SIMPLE)
+    for name in keys:
+        table.add_column(name)
+    table.add_column("metric")
+    for run in runs:
+        table.add_column(run, justify="right")
+    averaged = bool((comparison["n"] > 1).any())
+    rows: dict[tuple[str, ...], dict[str, str]] = {}
+    for record in comparison.to_dict("records"):
+        si_unit = str(record["unit"])
+        metric = str(record["metric"])
+        label = f"{LABELS.get(metric, metric)} {_SHOWN_AS.get(si_unit, (si_unit,))[0]}"
+        key = (*("all" if pd.isna(record[k]) else str(record[k]) for k in keys), label)
+        cell = _shown(float(record["value"]), si_unit)
+        change = float(record["change_pct"])
+        if record["run"] != baseline and not math.isnan(change):
+            cell += f" ({change:+.1f} %)"
+        if averaged:
+            cell += f" n={record['n']}"
+        rows.setdefault(key, dict.fromkeys(runs, ""))[str(record["run"])] = cell
+    for key, cells in rows.items():
+        if any(cell not in ("", "-") for cell in cells.values()):  # no value in any run: omitted
+            table.add_row(*key, *cells.values())
+    return table
+
+
+def write_table(frames: Sequence[pd.DataFrame], path: Path) -> Path:
+    """Concatenate ``frames`` and write them to ``path`` (.csv or .parquet, by its suffix).
+
+    Raises AnalysisError for another suffix or a file that cannot be written.
+    """
+    if path.suffix not in FILE_SUFFIXES:
+        raise AnalysisError(f"{path}: write a .csv or a .parquet file (or a folder for a dataset)")
+    frame = pd.concat(frames, ignore_index=True)
+    try:
+        if path.suffix == ".csv":
+            frame.to_csv(path, index=False)
+        else:
+            frame.to_parquet(path, index=False)
+    except OSError as err:
+        raise AnalysisError(f"{path}: cannot write ({err})") from err
+    return path

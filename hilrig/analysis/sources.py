@@ -1,0 +1,231 @@
+"""What analysis reads: controller runs from recorded sessions (MCAP) and replay results (Parquet).
+
+A :class:`Run` is one controller's response to a force input, as arrays; a :class:`Source` is
+one input with every run that saw it (a session: one run, the controller that was live; a replay
+result: one run per controller). Times are s from the input's first sample; forces N or N*m,
+offsets m or rad, offset rates m/s or rad/s, commanded joints rad.
+
+Replay results follow the replay table contract: one row per (run, tick) with ``run``, ``law``,
+``t_s`` and, per axis present, ``force_<axis>``, ``offset_<axis>``, ``velocity_<axis>`` (plus
+damping, stiffness, zeta and contact columns analysis does not need).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from enum import StrEnum
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+
+from hilrig.analysis.events import CARTESIAN_AXES, JOINT_AXES, FloatArray
+from hilrig.errors import AnalysisError
+from hilrig.recording import SessionInfo, inspect, load
+from hilrig.recording.session import SESSION_METADATA
+
+STATE_TOPIC = "/controller/state"
+COMMANDED_TOPIC = "/trajectory/commanded"
+KNOWN_AXES = CARTESIAN_AXES + JOINT_AXES
+SESSION_SUFFIX, REPLAY_SUFFIX = ".mcap", ".parquet"
+
+
+@dataclass(frozen=True)
+class Run:
+    """One controller's response to a force input.
+
+    ``t_s`` (T,) increasing, s; ``force``, ``offset``, ``offset_rate`` (T, A), one column per
+    name in ``axes`` (N or N*m; m or rad; m/s or rad/s). ``offset[n]`` is the offset commanded at
+    tick n, which belongs to the next tick's time (DESIGN.md: e[n] = e(t_n + dt)).
+    ``commanded_t_s`` (C,) and ``commanded_joints_rad`` (C, 6) are the joint targets sent to the
+    robot, when recorded. Raises AnalysisError for mismatched shapes or times that go back.
+    """
+
+    name: str
+    law: str
+    axes: tuple[str, ...]
+    t_s: FloatArray
+    force: FloatArray
+    offset: FloatArray
+    offset_rate: FloatArray
+    commanded_t_s: FloatArray | None = None
+    commanded_joints_rad: FloatArray | None = None
+
+    def __post_init__(self) -> None:
+        shape = (self.t_s.shape[0], len(self.axes))
+        for name in ("force", "offset", "offset_rate"):
+            if getattr(self, name).shape != shape:
+                raise AnalysisError(f"run {self.name}: {name} is not {shape}")
+        if self.t_s.shape[0] < 2 or np.any(np.diff(self.t_s) <= 0):
+            raise AnalysisError(f"run {self.name}: needs two or more strictly increasing times")
+        unknown = sorted(set(self.axes) - set(KNOWN_AXES))
+        if unknown:
+            raise AnalysisError(f"run {self.name}: unknown axes {unknown}")
+
+
+class SourceKind(StrEnum):
+    """Where a source came from."""
+
+    SESSION = "session"  # a recorded MCAP session
+    REPLAY = "replay"  # a replay result table
+
+
+@dataclass(frozen=True)
+class Source:
+    """One force input and every run that saw it; for recorded sessions, ``session`` and
+    ``start_ns``, the MCAP log time of t_s = 0 (ns since the Unix epoch)."""
+
+    path: Path
+    kind: SourceKind
+    runs: tuple[Run, ...]
+    session: SessionInfo | None = None
+    start_ns: int | None = None
+
+    @property
+    def name(self) -> str:
+        """The file's path as given (the first part's, for a split session)."""
+        return str(self.path)
+
+
+def load_session(paths: Path | Sequence[Path]) -> Source:
+    """A recorded session (the parts of a split session, in order) as a one-run source.
+
+    The run is named after the session's controller; time 0 is the first controller state.
+    Raises AnalysisError (one line naming the file) if it has no session metadata or no
+    controller states, RecordingError if it cannot be read.
+    """
+    parts = [paths] if isinstance(paths, Path) else list(paths)
+    info = inspect(parts[0])
+    if SESSION_METADATA not in info.metadata:
+        raise AnalysisError(f"{parts[0]}: no session metadata; is it a hilrig recording?")
+    session = SessionInfo.from_metadata(info.metadata[SESSION_METADATA])
+    counts = {t.topic: t.count for t in info.topics}
+    if not counts.get(STATE_TOPIC):
+        raise AnalysisError(f"{parts[0]}: no {STATE_TOPIC} messages to analyse")
+    topics = [STATE_TOPIC] + ([COMMANDED_TOPIC] if counts.get(COMMANDED_TOPIC) else [])
+    frames = load(parts if len(parts) > 1 else parts[0], topics=topics)
+    state = frames[STATE_TOPIC]
+    axes = tuple(str(state[c].iloc[0]) for c in state.columns if c.startswith("axis_names_"))
+    t0 = int(state.index[0])
+    run = Run(
+        name=session.controller,
+        law=session.controller,
+        axes=axes,
+        t_s=_seconds(state.index, t0),
+        force=_matrix(state, "force", len(axes)),
+        offset=_matrix(state, "offset", len(axes)),
+        offset_rate=_matrix(state, "offset_rate", len(axes)),
+        **_commanded(frames.get(COMMANDED_TOPIC), t0),
+    )
+    return Source(parts[0], SourceKind.SESSION, (run,), session, t0)
+
+
+def _seconds(index: pd.Index, t0_ns: int) -> FloatArray:
+    return (index.to_numpy(dtype=np.int64) - t0_ns) / 1e9
+
+
+def _matrix(frame: pd.DataFrame, field: str, count: int) -> FloatArray:
+    return frame[[f"{field}_{i}" for i in range(count)]].to_numpy(dtype=np.float64)
+
+
+def _commanded(frame: pd.DataFrame | None, t0_ns: int) -> dict[str, FloatArray | None]:
+    if frame is None or frame.shape[0] < 2:
+        return {"commanded_t_s": None, "commanded_joints_rad": None}
+    names = [str(frame[f"name_{j}"].iloc[0]) for j in range(len(JOINT_AXES))]
+    order = [f"position_{names.index(joint)}" for joint in JOINT_AXES]
+    return {
+        "commanded_t_s": _seconds(frame.index, t0_ns),
+        "commanded_joints_rad": frame[order].to_numpy(dtype=np.float64),
+    }
+
+
+def load_replay(path: Path) -> Source:
+    """A replay result table as a source with one run per distinct ``run``, in first-seen order.
+
+    Raises AnalysisError naming the file if it cannot be read or breaks the table contract.
+    """
+    try:
+        frame = pq.read_table(path).to_pandas()
+    except (OSError, ValueError) as err:
+        raise AnalysisError(f"{path}: cannot read the replay table ({err})") from err
+    try:
+        runs = runs_from_frame(frame)
+    except AnalysisError as err:
+        raise AnalysisError(f"{path}: {err}") from err
+    return Source(path, SourceKind.REPLAY, runs)
+
+
+def runs_from_frame(frame: pd.DataFrame) -> tuple[Run, ...]:
+    """The runs of a replay table (see the module docstring), each sorted by ``t_s``."""
+    missing = {"run", "law", "t_s"} - set(frame.columns)
+    axes = tuple(a for a in KNOWN_AXES if f"force_{a}" in frame.columns)
+    if missing or not axes:
+        raise AnalysisError(f"not a replay table: missing {sorted(missing) or 'force_<axis>'}")
+    needed = [f"{q}_{a}" for q in ("offset", "velocity") for a in axes]
+    absent = [c for c in needed if c not in frame.columns]
+    if absent:
+        raise AnalysisError(f"not a replay table: missing {absent}")
+    runs = []
+    for name, rows in frame.groupby("run", sort=False, observed=True):
+        rows = rows.sort_values("t_s", kind="stable")
+        runs.append(
+            Run(
+                name=str(name),
+                law=str(rows["law"].iloc[0]),
+                axes=axes,
+                t_s=rows["t_s"].to_numpy(dtype=np.float64),
+                force=rows[[f"force_{a}" for a in axes]].to_numpy(dtype=np.float64),
+                offset=rows[[f"offset_{a}" for a in axes]].to_numpy(dtype=np.float64),
+                offset_rate=rows[[f"velocity_{a}" for a in axes]].to_numpy(dtype=np.float64),
+            )
+        )
+    return tuple(runs)
+
+
+def find_inputs(paths: Iterable[Path], *, exclude: Path | None = None) -> list[Path]:
+    """The files to analyse: each given file, and every .mcap/.parquet file under each folder.
+
+    Files under ``exclude`` (an output folder) are skipped. Raises AnalysisError for a path
+    that does not exist or a file of another kind, and when nothing is left.
+    """
+    skip = exclude.resolve() if exclude is not None else None
+    found: list[Path] = []
+    for path in paths:
+        if path.is_dir():
+            found += sorted(
+                p for p in path.rglob("*") if p.suffix in (SESSION_SUFFIX, REPLAY_SUFFIX)
+            )
+        elif path.suffix in (SESSION_SUFFIX, REPLAY_SUFFIX) and path.is_file():
+            found.append(path)
+        else:
+            raise AnalysisError(f"{path}: not an .mcap session, a .parquet replay or a folder")
+    found = [p for p in found if skip is None or not p.resolve().is_relative_to(skip)]
+    if not found:
+        raise AnalysisError("no .mcap sessions or .parquet replay results to analyse")
+    return found
+
+
+def load_sources(paths: Iterable[Path], *, exclude: Path | None = None) -> tuple[Source, ...]:
+    """Every input under ``paths`` (see :func:`find_inputs`); parts of a split session (same
+    session id) are read as one session. Raises AnalysisError or RecordingError (one line) for
+    input that cannot be read."""
+    files = find_inputs(paths, exclude=exclude)
+    sessions: dict[str, list[tuple[int, Path]]] = {}
+    sources: list[Source | str] = []  # a session's place is kept by its id until all are seen
+    for path in files:
+        if path.suffix == REPLAY_SUFFIX:
+            sources.append(load_replay(path))
+            continue
+        record = inspect(path).metadata.get(SESSION_METADATA, {})
+        key = record.get("session_id", str(path))
+        if key not in sessions:
+            sessions[key] = []
+            sources.append(key)
+        part = record.get("part", "0")
+        sessions[key].append((int(part) if part.isdigit() else 0, path))
+    return tuple(
+        s if isinstance(s, Source) else load_session([p for _, p in sorted(sessions[s])])
+        for s in sources
+    )

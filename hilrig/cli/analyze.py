@@ -1,0 +1,112 @@
+"""``hilrig analyze``: collision events, metrics and comparison tables of sessions and replays."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import pandas as pd
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+from hilrig.analysis import (
+    ACROSS_SOURCES,
+    Analysis,
+    EventConfig,
+    SourceKind,
+    analyze,
+    comparison,
+    comparison_table,
+    dataset_frame,
+    default_baseline,
+    events_table,
+    load_sources,
+    runs_of,
+    values,
+    write_dataset,
+    write_table,
+)
+from hilrig.cli.app import app
+from hilrig.errors import AnalysisError
+
+
+@app.command("analyze")
+def analyze_command(
+    paths: Annotated[
+        list[Path],
+        typer.Argument(
+            help="MCAP sessions, replay results (.parquet) and/or folders of them.",
+            show_default=False,
+        ),
+    ],
+    baseline: Annotated[
+        str | None,
+        typer.Option(help="Run (controller) to compare against; default: fixed, else the first."),
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            "-o",
+            help="Write the comparison to a .csv or .parquet file, or the per-event metrics of"
+            " every input to a Parquet dataset in this folder (a path without a suffix).",
+        ),
+    ] = None,
+    delta: Annotated[
+        float, typer.Option(help="Collision threshold, N (Cartesian norm) and N*m (joints).")
+    ] = 0.2,
+    debounce_s: Annotated[
+        float, typer.Option("--debounce-s", help="Shortest event kept, s.")
+    ] = 0.02,
+    merge_gap_s: Annotated[
+        float, typer.Option("--merge-gap-s", help="Events closer than this merge, s.")
+    ] = 0.05,
+) -> None:
+    """Find collisions in the force channels, measure every run on every axis, compare runs."""
+    config = EventConfig(delta=delta, debounce_s=debounce_s, merge_gap_s=merge_gap_s)
+    analyses = [analyze(s, events=config) for s in load_sources(paths, exclude=out)]
+    runs = runs_of(values(analyses))
+    if baseline is not None and baseline not in runs:
+        raise AnalysisError(f"baseline {baseline!r} is not a run here; runs: {', '.join(runs)}")
+    chosen = baseline if baseline is not None else default_baseline(runs)
+    console = Console(highlight=False)
+    if not console.is_terminal:  # keep whole rows when piped
+        console = Console(highlight=False, width=160)
+    tables = [_print_source(console, a, chosen, delta) for a in analyses]
+    sessions = [a for a in analyses if a.source.kind is SourceKind.SESSION]
+    if len(sessions) > 1:
+        across = comparison(values(sessions), baseline=chosen, by=ACROSS_SOURCES)
+        title = f"{len(sessions)} sessions: mean over events"
+        console.print(comparison_table(across, baseline=chosen, title=title))
+        tables.append(across)
+    if out is not None:
+        if out.is_dir() or not out.suffix:
+            written = write_dataset(dataset_frame(analyses), out)
+        else:
+            written = write_table(tables, out)  # refuses a suffix other than .csv or .parquet
+        console.print(f"wrote {written}")
+
+
+def _print_source(
+    console: Console, analysis: Analysis, baseline: str, delta: float
+) -> pd.DataFrame:
+    """Print a source's events and its runs' comparison (against its own first run when
+    ``baseline`` is not among them, as for a session of another controller); return it.
+
+    The printed table keeps the axes that took part in an event (their own |force| above
+    ``delta``); the returned one has every axis.
+    """
+    console.print(f"[bold]{escape(analysis.source.name)}[/]")
+    console.print(events_table(analysis))
+    mine = values([analysis])
+    base = baseline if baseline in set(mine["run"]) else default_baseline(runs_of(mine))
+    table = comparison(mine, baseline=base)
+    loaded = {(m.event, m.axis) for m in analysis.metrics if abs(m.peak_force) > delta}
+    axes = {axis for _, axis in loaded}
+    shown = [
+        axis in axes if pd.isna(event) else (event, axis) in loaded
+        for event, axis in zip(table["event"], table["axis"], strict=True)
+    ]
+    console.print(comparison_table(table[shown], baseline=base, title="comparison"))
+    return table
