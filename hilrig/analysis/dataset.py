@@ -8,9 +8,10 @@ Each row is one run's metrics for one collision event on one axis (the columns o
 :func:`~hilrig.analysis.compare.metrics_frame`) with the session's metadata: rig, UTC start,
 software version, controller parameters (JSON) and ``source_start_ns``, the log time of the
 source's t_s = 0 (ns since the Unix epoch), so ``source_start_ns + start_s * 1e9`` places an
-event in time. Subjects appear only as their pseudonymous ids. Replay results have no session:
-their subject_id and session_id are null (hive's ``__HIVE_DEFAULT_PARTITION__``) and their
-controller is the run's name. Writing a session again replaces its partition.
+event in time. Subjects appear only as their pseudonymous ids. A replay result's rows go under
+the session its input was recorded in (null, hive's ``__HIVE_DEFAULT_PARTITION__``, when its
+metadata does not say) with each run's name as the controller. Writing a session again replaces
+its partitions.
 """
 
 from __future__ import annotations
@@ -43,20 +44,21 @@ def dataset_frame(analyses: Sequence[Analysis]) -> pd.DataFrame:
     """The dataset's rows: per-event metrics with the session columns (see the module doc)."""
     frames = []
     for analysis in analyses:
-        metrics = metrics_frame([analysis])
-        session = analysis.source.session
+        source, session = analysis.source, analysis.source.session
         described: dict[str, str | None] = dict.fromkeys(SESSION_COLUMNS[:-1])
         if session is not None:
-            described = {
-                "subject_id": validate_subject_id(session.subject_id),
+            described |= {
                 "controller": session.controller,
-                "session_id": session.session_id,
                 "rig": session.rig,
                 "start_utc": utc_iso(session.start_utc_ns),
                 "software_version": session.software_version,
                 "controller_params": json.dumps(dict(session.controller_params), sort_keys=True),
             }
-        frame = metrics.assign(**described, source_start_ns=analysis.source.start_ns)
+        described |= {
+            "subject_id": source.subject_id and validate_subject_id(source.subject_id),
+            "session_id": source.session_id,
+        }
+        frame = metrics_frame([analysis]).assign(**described, source_start_ns=source.start_ns)
         if session is None:
             frame["controller"] = frame["run"]
         frames.append(frame)

@@ -164,11 +164,10 @@ def event_metrics(
         i0 = int(np.searchsorted(t, event.start_s))
         i1 = int(np.searchsorted(edges, event.end_s))
         j = int(np.searchsorted(t, next_s))
-        force = run.force[:, cols]
-        during = force[i0:i1]
+        during = run.force[i0:i1, cols]
         peak = during[np.argmax(np.abs(during), axis=0), np.arange(len(cols))]
-        lo, hi = max(i0 - 1, 0), min(i1, last - 1)
-        impulse = np.atleast_1d(np.trapezoid(force[lo : hi + 1], t[lo : hi + 1], axis=0))
+        lo, hi = max(i0 - 1, 0), min(i1, last - 1) + 1
+        impulse = np.atleast_1d(np.trapezoid(run.force[lo:hi, cols], t[lo:hi], axis=0))
         window = run.offset[i0:j, cols]
         n_max = np.argmax(np.abs(window), axis=0)
         signed = window[n_max, np.arange(len(cols))]

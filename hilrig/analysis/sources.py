@@ -12,6 +12,7 @@ damping, stiffness, zeta and contact columns analysis does not need).
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
@@ -19,17 +20,19 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 import pyarrow.parquet as pq
 
 from hilrig.analysis.events import CARTESIAN_AXES, JOINT_AXES, FloatArray
 from hilrig.errors import AnalysisError
 from hilrig.recording import SessionInfo, inspect, load
-from hilrig.recording.session import SESSION_METADATA
+from hilrig.recording.session import SESSION_METADATA, validate_subject_id
 
 STATE_TOPIC = "/controller/state"
 COMMANDED_TOPIC = "/trajectory/commanded"
 KNOWN_AXES = CARTESIAN_AXES + JOINT_AXES
 SESSION_SUFFIX, REPLAY_SUFFIX = ".mcap", ".parquet"
+INPUT_KEY = b"hilrig.input"  # replay tables: where the input came from (JSON)
 
 
 @dataclass(frozen=True)
@@ -74,12 +77,19 @@ class SourceKind(StrEnum):
 
 @dataclass(frozen=True)
 class Source:
-    """One force input and every run that saw it; for recorded sessions, ``session`` and
-    ``start_ns``, the MCAP log time of t_s = 0 (ns since the Unix epoch)."""
+    """One force input and every run that saw it.
+
+    ``subject_id`` and ``session_id`` say which recorded session the force input comes from (a
+    session's own; a replay's as its ``hilrig.input`` metadata says, None if it does not);
+    ``session`` is the whole metadata of a recorded session; ``start_ns`` the log time of
+    t_s = 0, ns since the Unix epoch, when known.
+    """
 
     path: Path
     kind: SourceKind
     runs: tuple[Run, ...]
+    subject_id: str | None = None
+    session_id: str | None = None
     session: SessionInfo | None = None
     start_ns: int | None = None
 
@@ -119,7 +129,15 @@ def load_session(paths: Path | Sequence[Path]) -> Source:
         offset_rate=_matrix(state, "offset_rate", len(axes)),
         **_commanded(frames.get(COMMANDED_TOPIC), t0),
     )
-    return Source(parts[0], SourceKind.SESSION, (run,), session, t0)
+    return Source(
+        parts[0],
+        SourceKind.SESSION,
+        (run,),
+        subject_id=session.subject_id,
+        session_id=session.session_id,
+        session=session,
+        start_ns=t0,
+    )
 
 
 def _seconds(index: pd.Index, t0_ns: int) -> FloatArray:
@@ -144,17 +162,28 @@ def _commanded(frame: pd.DataFrame | None, t0_ns: int) -> dict[str, FloatArray |
 def load_replay(path: Path) -> Source:
     """A replay result table as a source with one run per distinct ``run``, in first-seen order.
 
-    Raises AnalysisError naming the file if it cannot be read or breaks the table contract.
+    The optional schema metadata ``hilrig.input`` (JSON) gives the recorded session the input
+    came from (``subject_id``, ``session_id``) and its ``t0_ns``. Raises AnalysisError naming
+    the file if it cannot be read or breaks the table contract.
     """
     try:
-        frame = pq.read_table(path).to_pandas()
-    except (OSError, ValueError) as err:
+        table = pq.read_table(path)
+    except (OSError, pa.ArrowException) as err:
         raise AnalysisError(f"{path}: cannot read the replay table ({err})") from err
     try:
-        runs = runs_from_frame(frame)
-    except AnalysisError as err:
+        runs = runs_from_frame(table.to_pandas())
+        origin = json.loads((table.schema.metadata or {}).get(INPUT_KEY, b"{}"))
+    except (AnalysisError, ValueError) as err:
         raise AnalysisError(f"{path}: {err}") from err
-    return Source(path, SourceKind.REPLAY, runs)
+    subject_id, session_id, t0_ns = (origin.get(k) for k in ("subject_id", "session_id", "t0_ns"))
+    return Source(
+        path,
+        SourceKind.REPLAY,
+        runs,
+        subject_id=None if subject_id is None else validate_subject_id(str(subject_id)),
+        session_id=None if session_id is None else str(session_id),
+        start_ns=None if t0_ns is None else int(t0_ns),
+    )
 
 
 def runs_from_frame(frame: pd.DataFrame) -> tuple[Run, ...]:

@@ -61,6 +61,16 @@ def test_merging_comes_before_debouncing_so_chattering_contact_survives() -> Non
     assert [(e.start_s, round(e.end_s, 9)) for e in found] == [(1.0, 1.09)]
 
 
+def test_noise_spikes_close_together_never_add_up_to_an_event() -> None:
+    # a 1 ms spike every 30 ms for 0.3 s: one merged stretch, but only 10 ms above delta
+    magnitude = np.zeros_like(T)
+    magnitude[1000:1300:30] = 1.0
+    assert detect_group(T, magnitude, AxisGroup.CARTESIAN, EventConfig()) == ()
+    magnitude[1000:1300:3] = 1.0  # 100 ms above: a collision from the first to the last spike
+    (event,) = detect_group(T, magnitude, AxisGroup.CARTESIAN, EventConfig())
+    assert (event.start_s, event.end_s) == (1.0, pytest.approx(1.298))
+
+
 def test_contact_until_the_data_ends_closes_one_interval_after_the_last_sample() -> None:
     magnitude = _pulses(T, (2.9, 4.0))
     (event,) = detect_group(T, magnitude, AxisGroup.CARTESIAN)
@@ -121,6 +131,6 @@ def test_events_never_overlap_and_each_holds_a_sample_above_delta(
     assert all(end <= start for end, start in zip(ends, starts[1:], strict=False))
     for event in found:
         inside = magnitude[(t_s >= event.start_s) & (t_s < event.end_s - 1e-12)]
-        assert event.duration_s >= debounce_s - 1e-12
+        assert (inside > delta).sum() * DT >= debounce_s - 1e-12
         assert event.peak == inside.max() > delta
         assert magnitude[t_s == event.start_s][0] > delta
