@@ -149,9 +149,12 @@ def _matrix(frame: pd.DataFrame, field: str, count: int) -> FloatArray:
 
 
 def _commanded(frame: pd.DataFrame | None, t0_ns: int) -> dict[str, FloatArray | None]:
-    if frame is None or frame.shape[0] < 2:
+    """The joint targets in JOINT_AXES order; none unless all six joints are named."""
+    columns = [f"name_{j}" for j in range(len(JOINT_AXES))]
+    usable = frame is not None and frame.shape[0] > 1 and set(columns) <= set(frame.columns)
+    names = [str(frame[c].iloc[0]) for c in columns] if frame is not None and usable else []
+    if frame is None or sorted(names) != sorted(JOINT_AXES):
         return {"commanded_t_s": None, "commanded_joints_rad": None}
-    names = [str(frame[f"name_{j}"].iloc[0]) for j in range(len(JOINT_AXES))]
     order = [f"position_{names.index(joint)}" for joint in JOINT_AXES]
     return {
         "commanded_t_s": _seconds(frame.index, t0_ns),

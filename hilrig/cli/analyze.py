@@ -57,7 +57,7 @@ def analyze_command(
         float, typer.Option(help="Collision threshold, N (Cartesian norm) and N*m (joints).")
     ] = 0.2,
     debounce_s: Annotated[
-        float, typer.Option("--debounce-s", help="Shortest event kept, s.")
+        float, typer.Option("--debounce-s", help="Least time above delta of an event, s.")
     ] = 0.02,
     merge_gap_s: Annotated[
         float, typer.Option("--merge-gap-s", help="Events closer than this merge, s.")
@@ -76,9 +76,11 @@ def analyze_command(
     tables = [_print_source(console, a, chosen, delta) for a in analyses]
     sessions = [a for a in analyses if a.source.kind is SourceKind.SESSION]
     if len(sessions) > 1:
-        across = comparison(values(sessions), baseline=chosen, by=ACROSS_SOURCES)
+        long = values(sessions)
+        base = chosen if chosen in set(long["run"]) else default_baseline(runs_of(long))
+        across = comparison(long, baseline=base, by=ACROSS_SOURCES)
         title = f"{len(sessions)} sessions: mean over events"
-        console.print(comparison_table(across, baseline=chosen, title=title))
+        console.print(comparison_table(across, baseline=base, title=title))
         tables.append(across)
     if out is not None:
         if out.is_dir() or not out.suffix:

@@ -120,3 +120,25 @@ def test_bad_options_name_the_problem(args: list[str], message: str, tmp_path: P
     result = CliRunner().invoke(app, ["analyze", str(EXAMPLE), *args])
     assert result.exit_code != 0
     assert message in str(result.exception)
+
+
+def test_sessions_and_replays_together_each_use_a_baseline_they_have(tmp_path: Path) -> None:
+    replay = write_replay(tmp_path / "replay.parquet", paper_replay_frame(duration_s=7.0))
+    for subject in ("S001", "S002"):
+        write_session(tmp_path / f"{subject}.mcap", subject_id=subject, session_id=subject)
+    out = tmp_path / "all.csv"
+    printed = _analyze(str(tmp_path), "--out", str(out))
+    assert "comparison (change vs fixed)" in printed  # the replay has a fixed run
+    assert "2 sessions: mean over events (change vs adaptive)" in printed  # they do not
+    table = pd.read_csv(out)
+    assert set(table["source"].dropna()) == {
+        str(replay),
+        *(str(p) for p in tmp_path.glob("*.mcap")),
+    }
+    across = table[table["source"].isna()]
+    assert set(across["run"]) == {"adaptive"} and (across["n"] == 2).any()
+
+
+def test_an_empty_folder_has_nothing_to_analyse(tmp_path: Path) -> None:
+    result = CliRunner().invoke(app, ["analyze", str(tmp_path)])
+    assert "no .mcap sessions or .parquet replay results to analyse" in str(result.exception)
