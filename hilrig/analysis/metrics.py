@@ -79,7 +79,8 @@ class AxisMetrics:
       ends or the next event starts first, or the data ends in contact), s.
     - ``peak_offset_rate``: the largest |offset rate| in the window, m/s or rad/s.
     - ``peak_commanded_joint_speed_rad_s``: the fastest commanded joint (any joint) in the
-      window, from the commanded joint targets; None where they were not recorded.
+      window: the largest step of the commanded joint targets over the loop period; None where
+      they were not recorded.
     """
 
     run: str
@@ -125,12 +126,17 @@ def _next_starts(events: Sequence[CollisionEvent], end_s: float) -> list[float]:
 
 
 def _commanded_speed(run: Run) -> tuple[FloatArray, FloatArray] | None:
-    """(time of each step, fastest joint's |speed| over the step), s and rad/s."""
+    """(time of each step, fastest joint's |speed| over the step), s and rad/s.
+
+    Each step is one loop tick, so it is divided by the loop period (the median interval), not
+    by its own log-time interval: a late tick's catch-up, logged microseconds after it, moves
+    the joints by one tick's worth and is no burst of speed.
+    """
     t, q = run.commanded_t_s, run.commanded_joints_rad
     if t is None or q is None or t.shape[0] < 2:
         return None
-    speed = np.abs(np.diff(q, axis=0)) / np.diff(t)[:, None]
-    return t[1:], speed.max(axis=1)
+    period_s = float(np.median(np.diff(t)))
+    return t[1:], np.abs(np.diff(q, axis=0)).max(axis=1) / period_s
 
 
 def _last_true(mask: np.ndarray) -> np.ndarray:

@@ -137,6 +137,15 @@ def test_peak_offset_rate_and_commanded_joint_speed_come_from_the_event_window()
     assert _one(_run(_triangle(T))).peak_commanded_joint_speed_rad_s is None
 
 
+def test_a_late_tick_and_its_catch_up_are_no_burst_of_joint_speed() -> None:
+    times = T.copy()
+    times[150] = times[151] - 2e-5  # tick 150 logged late, 20 us before tick 151
+    joints = np.zeros((T.shape[0], 6))
+    joints[:, 0] = 0.2 * T  # 0.2 rad/s, one step per tick
+    run = _run(_triangle(T), commanded_t_s=times, commanded_joints_rad=joints)
+    assert _one(run).peak_commanded_joint_speed_rad_s == pytest.approx(0.2)
+
+
 def test_tracking_rms_of_a_sine_outside_the_event_ignores_the_event() -> None:
     amplitude = 0.004
     offset = amplitude * np.sin(2 * np.pi * 2.0 * T)  # 2 Hz: whole periods in [0, 1) and [2, 4)
