@@ -199,6 +199,8 @@ def runs_from_frame(frame: pd.DataFrame) -> tuple[Run, ...]:
     absent = [c for c in needed if c not in frame.columns]
     if absent:
         raise AnalysisError(f"not a replay table: missing {absent}")
+    if frame.empty:
+        raise AnalysisError("a replay table without rows")
     runs = []
     for name, rows in frame.groupby("run", sort=False, observed=True):
         rows = rows.sort_values("t_s", kind="stable")

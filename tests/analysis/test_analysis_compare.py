@@ -136,3 +136,9 @@ def test_a_table_that_breaks_the_replay_contract_is_refused(tmp_path: Path) -> N
     path = write_replay(tmp_path / "broken.parquet", frame)
     with pytest.raises(AnalysisError, match=r"broken.parquet: not a replay table.*velocity_y"):
         load_replay(path)
+
+
+def test_an_empty_replay_table_is_refused(tmp_path: Path) -> None:
+    frame = paper_replay_frame(laws=("fixed",), duration_s=1.0).iloc[:0]
+    with pytest.raises(AnalysisError, match=r"empty\.parquet: a replay table without rows"):
+        load_replay(write_replay(tmp_path / "empty.parquet", frame))
