@@ -52,3 +52,7 @@ class RobotModelError(HilrigError, ValueError):
 
 class AnalysisError(HilrigError):
     """Sessions or replay results cannot be analysed as asked; the message names what and why."""
+
+
+class ReplayError(HilrigError):
+    """An offline replay cannot run as asked: unusable input, bad controller spec or output."""

@@ -14,6 +14,7 @@ from hilrig.cli import (  # noqa: F401  (register their commands)
     paper,
     record,
     recording,
+    replay,
     rig,
 )
 from hilrig.cli.app import app

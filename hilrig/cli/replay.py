@@ -1,0 +1,195 @@
+"""``hilrig replay``: recorded force traces through any controllers offline, or ``--verify``."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TaskID,
+    TextColumn,
+    TimeRemainingColumn,
+)
+from rich.table import Table
+from rich.text import Text
+
+from hilrig.cli.app import app
+from hilrig.cli.recording import _one_line_errors
+from hilrig.errors import ReplayError
+from hilrig.replay import ForceTrace, Run, load_trace, parse_specs, peak_offsets, replay
+from hilrig.replay.outputs import MCAP_SUFFIXES, PARQUET_SUFFIXES, write_mcap, write_parquet
+from hilrig.replay.verify import summary_lines, verify
+
+#: Inputs at least this large get a progress bar.
+LONG_INPUT_BYTES = 16 << 20
+PHASES = {"load": "reading chunks", "replay": "replaying ticks", "write": "writing ticks"}
+#: Exit status of a failed --verify (2 is an error that stopped the command).
+VERIFY_FAILED = 1
+
+
+@app.command("replay")
+@_one_line_errors
+def replay_command(
+    file: Annotated[
+        Path,
+        typer.Argument(
+            help="An MCAP session, or a CSV/Parquet table (t, fx fy fz, tau1..tau6).",
+            show_default=False,
+        ),
+    ],
+    controller: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--controller",
+            "-c",
+            help="A controller: LAW or NAME=LAW (adaptive, variable-stiffness, fixed). "
+            "Repeat for several; default: all three laws.",
+        ),
+    ] = None,
+    setting: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--set",
+            help="NAME.[cartesian.|joint.]PARAM=VALUE, e.g. adaptive.a1=10 (repeatable).",
+        ),
+    ] = None,
+    sweep: Annotated[
+        list[str] | None,
+        typer.Option(
+            help="NAME.[GROUP.]PARAM=START:STOP:COUNT or =V1,V2,..; sweeps of one controller "
+            "run as a grid (repeatable).",
+        ),
+    ] = None,
+    out: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--out", "-o", help="Write the results: .parquet (the table) or .mcap (topics)."
+        ),
+    ] = None,
+    check: Annotated[
+        bool,
+        typer.Option(
+            "--verify",
+            help="Replay the session through its recorded controller and compare with the "
+            "recorded state (exit 1 if anything differs by more than 1e-12).",
+        ),
+    ] = False,
+    resample: Annotated[
+        bool,
+        typer.Option(help="Interpolate a table with non-uniform times onto a uniform grid."),
+    ] = False,
+    jobs: Annotated[
+        int | None,
+        typer.Option("--jobs", "-j", min=1, help="Processes (default: chosen by size)."),
+    ] = None,
+) -> None:
+    """Replay FILE's force trace through controllers and sweeps; summarise the peak offsets."""
+    console = Console(highlight=False)
+    if not console.is_terminal:  # keep whole run names when piped
+        console = Console(highlight=False, width=200)
+    errors = Console(stderr=True, highlight=False, soft_wrap=True)
+    long_input = file.is_file() and file.stat().st_size >= LONG_INPUT_BYTES
+    if check:
+        if controller or setting or sweep or out or resample:
+            raise ReplayError(
+                "--verify replays the recorded controller: it takes no --controller, --set, "
+                "--sweep, --out or --resample"
+            )
+        with _progress(errors, enabled=long_input) as progress:
+            report = verify(file, progress=progress)
+        for line in summary_lines(report):
+            console.print(line, soft_wrap=True)
+        if not report.ok:
+            raise typer.Exit(VERIFY_FAILED)
+        return
+    specs = parse_specs(controller or [], setting or [], sweep or [])
+    outputs = _outputs(out or [])
+    with _progress(errors, enabled=long_input) as progress:
+        trace = load_trace(
+            file,
+            resample=resample,
+            progress=None if progress is None else lambda d, t: progress("load", d, t),
+        )
+        runs = [Run.from_spec(spec, trace.axis_names) for spec in specs]
+        # HIL replay (--rig) branches here: the same trace, played into a rig's live loop.
+        table = replay(trace, runs, jobs=jobs, progress=progress)
+        for note in trace.notes:
+            errors.print(Text.assemble(("note: ", "yellow"), note))
+        for path in outputs:
+            if path.suffix.lower() in PARQUET_SUFFIXES:
+                write_parquet(table, path)
+            else:
+                write_mcap(
+                    table,
+                    path,
+                    session=trace.session,
+                    t0_ns=trace.t0_ns,
+                    progress=None if progress is None else lambda d, t: progress("write", d, t),
+                )
+    for path in outputs:
+        console.print(f"wrote {path}")
+    console.print(_summary(trace, table_runs=runs, peaks=peak_offsets(table, trace.axis_names)))
+
+
+def _outputs(paths: list[Path]) -> list[Path]:
+    """Checked before any work: a known suffix, no existing file, an existing directory."""
+    for path in paths:
+        if path.suffix.lower() not in PARQUET_SUFFIXES + MCAP_SUFFIXES:
+            known = ", ".join(PARQUET_SUFFIXES + MCAP_SUFFIXES)
+            raise ReplayError(f"--out {path}: unknown output type; known: {known}")
+        if path.exists():
+            raise ReplayError(f"--out {path}: already exists; refusing to overwrite it")
+        if not path.parent.is_dir():
+            raise ReplayError(f"--out {path}: directory {path.parent} does not exist")
+    if len(set(paths)) != len(paths):
+        raise ReplayError("--out: the same file is given twice")
+    return paths
+
+
+@contextmanager
+def _progress(console: Console, *, enabled: bool) -> Iterator[_Phases | None]:
+    """A transient progress bar on stderr, one task per phase (load, replay, write)."""
+    if not enabled:
+        yield None
+        return
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn())
+    with Progress(*columns, TimeRemainingColumn(), console=console, transient=True) as bar:
+        yield _Phases(bar)
+
+
+class _Phases:
+    """``progress(phase, done, total)`` onto one rich task per phase."""
+
+    def __init__(self, bar: Progress) -> None:
+        self.bar = bar
+        self.tasks: dict[str, TaskID] = {}
+
+    def __call__(self, phase: str, done: int, total: int) -> None:
+        task = self.tasks.get(phase)
+        if task is None:
+            task = self.tasks[phase] = self.bar.add_task(PHASES.get(phase, phase), total=total)
+        self.bar.update(task, completed=done, total=total)
+
+
+def _summary(
+    trace: ForceTrace, *, table_runs: list[Run], peaks: dict[str, dict[str, float]]
+) -> Table:
+    """Per run, the largest |offset| per axis: mm for x, y, z and mrad for joints."""
+    table = Table(
+        title=f"max |offset| (x y z: mm, joints: mrad) over {trace.duration_s:.3f} s of "
+        f"{trace.source}",
+        title_justify="left",
+    )
+    table.add_column("run", overflow="fold")
+    for axis in trace.axis_names:
+        table.add_column(axis.replace("joint", "j"), justify="right")
+    for run in table_runs:
+        table.add_row(run.name, *(f"{1000 * peaks[run.name][a]:.2f}" for a in trace.axis_names))
+    return table

@@ -1,0 +1,228 @@
+"""The replay engine: every run over one force trace, straight into the result table's memory.
+
+Each run is the admittance kernel of :mod:`hilrig.control` started from rest, exactly what
+:func:`hilrig.control.simulate` computes (the tests hold them equal to the last bit). Instead of
+letting ``simulate`` allocate (T, A) arrays and then copying them into the table, the kernel
+writes each tick's offset, velocity, damping and stiffness directly into the table's columns
+(strided views), in blocks of ticks so that progress can be reported; force and zeta are then
+filled column-wise with numpy. That halves the memory traffic, which is what a long replay
+spends its time on.
+
+Runs go either one after the other in this process or, with ``jobs`` > 1, to a
+``ProcessPoolExecutor`` of forked local processes that write into a shared anonymous mapping
+(nothing is pickled but the parameters). Which is faster depends on the size: see
+:func:`choose_jobs` and docs/replay.md.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import sys
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from hilrig.control import ParameterError, kernel
+from hilrig.control.controller import Packed
+from hilrig.errors import ReplayError
+from hilrig.replay.blocks import Blocks
+from hilrig.replay.inputs import PathLike, load_trace
+from hilrig.replay.results import FLOAT_ROWS, FORCE_ROW, ZETA_ROW, Run, frame, table_bytes
+from hilrig.replay.specs import ControllerSpec, parse_specs
+from hilrig.replay.trace import ForceTrace
+
+#: ``progress(phase, done, total)``: phase "load" counts an MCAP file's chunks, "replay" ticks
+#: of all runs together.
+Progress = Callable[[str, int, int], None]
+#: Ticks per kernel call: progress granularity (about 20 ms of work on 9 axes).
+BLOCK_TICKS = 1 << 18
+#: The process pool pays once the runs hold this many axis-ticks each (measured: below it,
+#: forking and the shared mapping's page faults cost more than the second core saves) and
+#: there are more runs than one process would finish before the others start.
+POOL_MIN_AXIS_TICKS = 2_000_000
+POOL_MIN_RUNS = 4
+
+
+def run(
+    source: PathLike | ForceTrace,
+    controllers: Sequence[ControllerSpec] | None = None,
+    *,
+    jobs: int | None = None,
+    resample: bool = False,
+    progress: Progress | None = None,
+) -> pd.DataFrame:
+    """Replay ``source`` (a file for :func:`.load_trace`, or a trace) through ``controllers``
+    (default: the three laws with the live loop's presets); returns the result table of
+    :mod:`.results`. Raises ReplayError (one line) for unusable input or parameters."""
+    if isinstance(source, ForceTrace):
+        trace = source
+    else:
+        load_progress = None if progress is None else _phase(progress, "load")
+        trace = load_trace(source, resample=resample, progress=load_progress)
+    specs = parse_specs() if controllers is None else controllers
+    runs = [Run.from_spec(spec, trace.axis_names) for spec in specs]
+    return replay(trace, runs, jobs=jobs, progress=progress)
+
+
+def _phase(progress: Progress, phase: str) -> Callable[[int, int], None]:
+    return lambda done, total: progress(phase, done, total)
+
+
+def replay(
+    trace: ForceTrace,
+    runs: Sequence[Run],
+    *,
+    jobs: int | None = None,
+    progress: Progress | None = None,
+) -> pd.DataFrame:
+    """The result table of ``runs`` over ``trace``. ``jobs``: processes (1 = this one; None =
+    :func:`choose_jobs`). Raises ReplayError for invalid parameters, duplicate run names or
+    a table larger than this machine's memory."""
+    if not runs:
+        raise ReplayError("no controller runs to replay")
+    names = [r.name for r in runs]
+    if len(set(names)) != len(names):
+        raise ReplayError(f"run names repeat: {', '.join(sorted(set(names)))}")
+    axes, ticks = len(trace.axis_names), trace.ticks
+    need = table_bytes(axes, ticks * len(runs))
+    have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    if need > have:
+        raise ReplayError(
+            f"{len(runs)} runs of {ticks} ticks need a {need / 2**30:.1f} GiB table, more than "
+            f"this machine's {have / 2**30:.1f} GiB; replay fewer runs or a shorter input"
+        )
+    packed = [_packed(r, trace) for r in runs]
+    force = np.require(trace.force, np.float64, ["C_CONTIGUOUS", "WRITEABLE"])
+    workers = choose_jobs(len(runs), axes * ticks) if jobs is None else max(1, jobs)
+    workers = min(workers, len(runs))
+    report = _Report(progress, ticks * len(runs))
+    pool = workers > 1 and "fork" in multiprocessing.get_all_start_methods()
+    blocks = Blocks.allocate(axes, len(FLOAT_ROWS), ticks * len(runs), shared=pool)
+    if pool:
+        _warm_up(force, packed[0], blocks)  # compile before forking: once, not per process
+        _in_pool(force, packed, blocks, workers, report)
+    else:
+        for index, p in enumerate(packed):
+            simulate_into(force, p, blocks, index * ticks, report.add)
+    blocks.settle()
+    return frame(trace, runs, blocks)
+
+
+def choose_jobs(runs: int, axis_ticks: int) -> int:
+    """Processes for ``runs`` runs of ``axis_ticks`` axis-ticks each: the local cores when
+    the pool pays (see POOL_MIN_*), else 1."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    if runs >= POOL_MIN_RUNS and axis_ticks >= POOL_MIN_AXIS_TICKS and (cores or 1) > 1:
+        return min(runs, cores or 1)
+    return 1
+
+
+def _packed(run: Run, trace: ForceTrace) -> Packed:
+    try:
+        return Packed.build(run.law, run.params, len(trace.axis_names), trace.dt_s)
+    except ParameterError as err:
+        raise ReplayError(f"run {run.name}: {err}") from err
+
+
+@dataclass
+class _Report:
+    """Counts ticks done over all runs and passes them on to the progress callback."""
+
+    progress: Progress | None
+    total: int
+    done: int = 0
+
+    def add(self, ticks: int) -> None:
+        self.done += ticks
+        if self.progress is not None:
+            self.progress("replay", self.done, self.total)
+
+
+def simulate_into(
+    force: NDArray[np.float64],
+    packed: Packed,
+    blocks: Blocks,
+    row0: int,
+    on_block: Callable[[int], None] | None = None,
+) -> None:
+    """Run ``packed``'s controller from rest over ``force`` (T, A), writing rows ``row0`` ..
+    ``row0 + T`` of ``blocks``; ``on_block(ticks)`` after each block of ticks."""
+    ticks, axes = force.shape
+    state, groups = packed.initial_state()
+    floats, contact = blocks.floats, blocks.contact
+    for start in range(0, ticks, BLOCK_TICKS):
+        stop = min(start + BLOCK_TICKS, ticks)
+        rows = slice(row0 + start, row0 + stop)
+        out = floats[:, : kernel.NO, rows].transpose(1, 2, 0)  # (outputs, ticks, axes) view
+        code = kernel.run(
+            force[start:stop], packed.P, packed.cfg, state, groups, out, contact[:, rows].T
+        )
+        if code >= 0:  # inputs are checked finite; this is a guard, not a path
+            tick, axis = divmod(code, axes)
+            raise ReplayError(f"force at tick {start + tick}, axis {axis} is not finite")
+        if on_block is not None:
+            on_block(stop - start)
+    rows = slice(row0, row0 + ticks)
+    floats[:, FORCE_ROW, rows] = force.T
+    # zeta = b / (2 sqrt(m k)), in the order SimResult.zeta computes it (bit-equal)
+    zeta = floats[:, ZETA_ROW, rows]
+    m = packed.P[kernel.M][:, None]
+    np.multiply(floats[:, kernel.OUT_STIFFNESS, rows], m, out=zeta)
+    np.sqrt(zeta, out=zeta)
+    np.multiply(zeta, 2.0, out=zeta)
+    np.divide(floats[:, kernel.OUT_DAMPING, rows], zeta, out=zeta)
+
+
+# -- the process pool -------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Shared:
+    """What forked workers inherit: the input and the shared result blocks."""
+
+    force: NDArray[np.float64]
+    blocks: Blocks
+
+
+_inherited: list[_Shared] = []
+
+
+def _init_worker(shared: _Shared) -> None:
+    _inherited.append(shared)
+
+
+def _work(index: int, row0: int, packed: Packed) -> int:
+    shared = _inherited[-1]
+    simulate_into(shared.force, packed, shared.blocks, row0)
+    return index
+
+
+def _warm_up(force: NDArray[np.float64], packed: Packed, blocks: Blocks) -> None:
+    """One tick through the kernel with the block's array layouts, so forked workers inherit
+    the compiled code (the row is overwritten by the real run later)."""
+    simulate_into(force[:1], packed, blocks, 0)
+
+
+def _in_pool(
+    force: NDArray[np.float64],
+    packed: Sequence[Packed],
+    blocks: Blocks,
+    workers: int,
+    report: _Report,
+) -> None:
+    ticks = force.shape[0]
+    context = multiprocessing.get_context("fork")
+    sys.stdout.flush()
+    sys.stderr.flush()
+    with ProcessPoolExecutor(
+        workers, mp_context=context, initializer=_init_worker, initargs=(_Shared(force, blocks),)
+    ) as pool:
+        futures = [pool.submit(_work, i, i * ticks, p) for i, p in enumerate(packed)]
+        for future in as_completed(futures):
+            future.result()
+            report.add(ticks)

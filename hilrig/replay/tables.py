@@ -1,0 +1,186 @@
+"""Force traces from CSV and Parquet tables, strictly validated.
+
+A table has a time column ``t`` (s) and the force columns ``fx fy fz`` (N, the Cartesian
+group) and/or ``tau1``..``tau6`` (N*m, the joint group); a group comes whole or not at all,
+because its axes share one contact state. Other columns are ignored. Rows count from 0, the
+first data row (for CSV the file line is given too).
+
+Refused, with one line naming file, column and row: a missing column; a value that is not a
+number; a non-finite time; times that go backwards or repeat; infinite force; missing force
+(NaN or an empty cell); fewer than two rows; non-uniform sampling, i.e. a step further than
+1 % of the period (the median step) from it. With ``resample``, rows with missing force are
+dropped and the rest is interpolated linearly onto a uniform grid of the median step of the
+kept rows, from the first time to the last; every other refusal stands.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+from numpy.typing import NDArray
+
+from hilrig.errors import ReplayError
+from hilrig.replay.trace import ForceTrace
+
+TIME = "t"
+FORCE_COLUMNS = {
+    "cartesian": (("fx", "x"), ("fy", "y"), ("fz", "z")),
+    "joint": tuple((f"tau{i}", f"joint{i}") for i in range(1, 7)),
+}
+#: Steps may differ from the median step by this fraction of it (clock quantisation, rounding).
+UNIFORM_TOLERANCE = 0.01
+
+
+def trace_from_table(path: Path, *, resample: bool = False) -> ForceTrace:
+    """The trace of a ``.csv`` or ``.parquet`` table (see the module docstring).
+
+    Raises ReplayError, one line naming file, column and row, for anything refused.
+    """
+    table = _Table(path)
+    columns = table.columns
+    if TIME not in columns:
+        raise ReplayError(f"{path}: no time column {TIME!r} (has {', '.join(columns) or 'none'})")
+    wanted: list[tuple[str, str]] = []
+    for group in FORCE_COLUMNS.values():
+        present = [c for c, _ in group if c in columns]
+        if present and len(present) < len(group):
+            missing = next(c for c, _ in group if c not in columns)
+            raise ReplayError(
+                f"{path}: no column {missing}: {', '.join(c for c, _ in group)} come together "
+                f"(has {', '.join(present)})"
+            )
+        if present:
+            wanted.extend(group)
+    if not wanted:
+        raise ReplayError(f"{path}: no force columns: fx, fy, fz and/or tau1..tau6 are needed")
+    values = table.numbers([TIME, *(c for c, _ in wanted)])
+    t = values[:, 0]
+    force = np.ascontiguousarray(values[:, 1:])
+    names = tuple(axis for _, axis in wanted)
+    table.check_times(t)
+    table.check_finite(force, [c for c, _ in wanted], allow_nan=resample)
+    notes: list[str] = []
+    kept = np.isfinite(force).all(axis=1)
+    if not kept.all():
+        notes.append(f"{path}: {int((~kept).sum())} rows with missing force dropped")
+        t, force = t[kept], force[kept]
+    if len(t) < 2:
+        raise ReplayError(f"{path}: {len(t)} usable rows; at least two are needed")
+    steps = np.diff(t)
+    dt_s = float(np.median(steps))
+    deviation = np.abs(steps - dt_s)
+    worst = int(np.argmax(deviation))
+    if deviation[worst] > UNIFORM_TOLERANCE * dt_s:
+        if not resample:
+            row = int(np.flatnonzero(kept)[worst + 1])
+            raise ReplayError(
+                f"{table.where(TIME, row)}: non-uniform sampling: a step of {steps[worst]:.6g} s "
+                f"where the median is {dt_s:.6g} s (largest deviation "
+                f"{100 * deviation[worst] / dt_s:.3g} % of the period, more than "
+                f"{100 * UNIFORM_TOLERANCE:g} %); pass --resample to interpolate onto a "
+                f"uniform {dt_s:.6g} s grid"
+            )
+        t, force = _resampled(t, force, dt_s)
+        notes.append(
+            f"{path}: resampled onto a uniform {dt_s:.6g} s grid ({len(t)} ticks; largest gap "
+            f"{float(steps.max()):.6g} s interpolated linearly)"
+        )
+    return ForceTrace(t - t[0], force, names, str(path), dt_s, notes=tuple(notes))
+
+
+def _resampled(
+    t: NDArray[np.float64], force: NDArray[np.float64], dt_s: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``force`` linearly interpolated at ``t[0] + n*dt_s`` up to ``t[-1]``."""
+    count = int(np.floor((t[-1] - t[0]) / dt_s + 1e-9)) + 1
+    grid = t[0] + np.arange(count) * dt_s
+    out = np.empty((count, force.shape[1]))
+    for i in range(force.shape[1]):
+        out[:, i] = np.interp(grid, t, force[:, i])
+    return grid, out
+
+
+class _Table:
+    """One CSV or Parquet file: its column names, numeric columns and error locations."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.csv = path.suffix.lower() == ".csv"
+        try:
+            if self.csv:
+                header = pd.read_csv(path, nrows=0)
+                self.columns = [str(c) for c in header.columns]
+            else:
+                self.columns = list(pq.read_schema(path).names)
+        except (OSError, ValueError, pd.errors.ParserError, pa.ArrowException) as err:
+            kind = "CSV" if self.csv else "Parquet"
+            raise ReplayError(f"{path}: cannot read as {kind}: {_first_line(err)}") from err
+
+    def where(self, column: str, row: int) -> str:
+        line = f" (line {row + 2})" if self.csv else ""
+        return f"{self.path}: column {column}, row {row}{line}"
+
+    def numbers(self, names: list[str]) -> NDArray[np.float64]:
+        """The columns ``names`` as float64 (rows, len(names)); refuses non-numbers."""
+        try:
+            if self.csv:
+                # round_trip: values written with repr() are read back bit for bit
+                frame = pd.read_csv(self.path, usecols=names, float_precision="round_trip")
+            else:
+                frame = pd.read_parquet(self.path, columns=names)
+        except (OSError, ValueError, pd.errors.ParserError, pa.ArrowException) as err:
+            raise ReplayError(f"{self.path}: cannot read: {_first_line(err)}") from err
+        out = np.empty((len(frame), len(names)))
+        for i, name in enumerate(names):
+            column = frame[name]
+            if column.dtype.kind in "fiu":
+                out[:, i] = column.to_numpy(dtype=np.float64, na_value=np.nan)
+                continue
+            coerced = pd.to_numeric(column, errors="coerce")
+            bad = coerced.isna() & column.notna()
+            if bool(bad.any()) or column.dtype.kind == "b":
+                row = int(np.argmax(bad.to_numpy())) if bool(bad.any()) else 0
+                raise ReplayError(f"{self.where(name, row)}: {column.iloc[row]!r} is not a number")
+            out[:, i] = coerced.to_numpy(dtype=np.float64, na_value=np.nan)
+        return out
+
+    def check_times(self, t: NDArray[np.float64]) -> None:
+        """Finite and strictly increasing, else the first offending row."""
+        bad = ~np.isfinite(t)
+        if bad.any():
+            row = int(np.argmax(bad))
+            raise ReplayError(f"{self.where(TIME, row)}: time is {t[row]}")
+        steps = np.diff(t)
+        back = steps <= 0
+        if back.any():
+            row = int(np.argmax(back)) + 1
+            what = (
+                f"time {t[row]:.9g} s repeats row {row - 1}"
+                if steps[row - 1] == 0
+                else f"time {t[row]:.9g} s is before row {row - 1}'s {t[row - 1]:.9g} s"
+            )
+            raise ReplayError(f"{self.where(TIME, row)}: {what}; times must increase")
+
+    def check_finite(
+        self, force: NDArray[np.float64], names: list[str], *, allow_nan: bool
+    ) -> None:
+        """No infinite force; no missing force unless ``allow_nan`` (rows dropped later)."""
+        bad = np.isinf(force) if allow_nan else ~np.isfinite(force)
+        if bad.any():
+            row, i = np.unravel_index(int(np.argmax(bad)), force.shape)
+            value = force[row, i]
+            why = (
+                "missing (NaN or empty); pass --resample to drop such rows and interpolate"
+                if np.isnan(value)
+                else f"{value}: infinite force is refused"
+            )
+            raise ReplayError(f"{self.where(names[int(i)], int(row))}: {why}")
+
+
+def _first_line(err: BaseException) -> str:
+    text = str(err).strip()
+    return text.splitlines()[0] if text else type(err).__name__
