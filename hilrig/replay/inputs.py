@@ -73,14 +73,14 @@ def session_index(path: Path) -> SessionIndex:
     """Topics and session metadata of ``path``, from its summary (nothing is decompressed)."""
     try:
         p, mm = open_mcap(path)
+        try:
+            index = index_mapped(p, mm)
+            records = dict(read_metadata(mm, ref) for ref in index.metadata)
+        finally:
+            with contextlib.suppress(BufferError):
+                mm.close()
     except RecordingError as err:
         raise ReplayError(str(err)) from err
-    try:
-        index = index_mapped(p, mm)
-        records = dict(read_metadata(mm, ref) for ref in index.metadata)
-    finally:
-        with contextlib.suppress(BufferError):
-            mm.close()
     session = None
     params: Mapping[str, object] = {}
     record = records.get(SESSION_METADATA)

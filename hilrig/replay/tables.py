@@ -8,9 +8,10 @@ first data row (for CSV the file line is given too).
 Refused, with one line naming file, column and row: a missing column; a value that is not a
 number; a non-finite time; times that go backwards or repeat; infinite force; missing force
 (NaN or an empty cell); fewer than two rows; non-uniform sampling, i.e. a step further than
-1 % of the period (the median step) from it. With ``resample``, rows with missing force are
-dropped and the rest is interpolated linearly onto a uniform grid of the median step of the
-kept rows, from the first time to the last; every other refusal stands.
+1 % of the period (the median step of all rows) from it. With ``resample``, rows with missing
+force are dropped and the rest is interpolated linearly onto a uniform grid of that period,
+from the first kept time to the last; every other refusal stands. Times are kept as given
+(minus the first) when the sampling is uniform; the period is the median step.
 """
 
 from __future__ import annotations
@@ -63,15 +64,18 @@ def trace_from_table(path: Path, *, resample: bool = False) -> ForceTrace:
     names = tuple(axis for _, axis in wanted)
     table.check_times(t)
     table.check_finite(force, [c for c, _ in wanted], allow_nan=resample)
+    if len(t) < 2:
+        raise ReplayError(f"{path}: {_rows(len(t))}; at least two are needed")
+    dt_s = float(np.median(np.diff(t)))  # the period, from every row's time
     notes: list[str] = []
     kept = np.isfinite(force).all(axis=1)
     if not kept.all():
-        notes.append(f"{path}: {int((~kept).sum())} rows with missing force dropped")
+        dropped = int((~kept).sum())
+        notes.append(f"{path}: dropped {_rows(dropped)} with missing force")
         t, force = t[kept], force[kept]
-    if len(t) < 2:
-        raise ReplayError(f"{path}: {len(t)} usable rows; at least two are needed")
+        if len(t) < 2:
+            raise ReplayError(f"{path}: {_rows(len(t))} with force; at least two are needed")
     steps = np.diff(t)
-    dt_s = float(np.median(steps))
     deviation = np.abs(steps - dt_s)
     worst = int(np.argmax(deviation))
     if deviation[worst] > UNIFORM_TOLERANCE * dt_s:
@@ -128,8 +132,7 @@ class _Table:
         """The columns ``names`` as float64 (rows, len(names)); refuses non-numbers."""
         try:
             if self.csv:
-                # round_trip: values written with repr() are read back bit for bit
-                frame = pd.read_csv(self.path, usecols=names, float_precision="round_trip")
+                frame = pd.read_csv(self.path, usecols=names)
             else:
                 frame = pd.read_parquet(self.path, columns=names)
         except (OSError, ValueError, pd.errors.ParserError, pa.ArrowException) as err:
@@ -179,6 +182,10 @@ class _Table:
                 else f"{value}: infinite force is refused"
             )
             raise ReplayError(f"{self.where(names[int(i)], int(row))}: {why}")
+
+
+def _rows(count: int) -> str:
+    return f"{count} row{'s' * (count != 1)}"
 
 
 def _first_line(err: BaseException) -> str:

@@ -113,3 +113,13 @@ def write_input_session(
             f = wrench[n].tolist()
             writer.write("/controller/input", WrenchSample(t, (f[0], f[1], f[2]), (0.0, 0.0, 0.0)))
     return path
+
+
+def tampered_copy(tmp_path: Path) -> Path:
+    """The example recording, its metadata claiming a1 = 30 where the loop ran a1 = 20."""
+    data = EXAMPLE.read_bytes()
+    claimed = b'"a1": "(20.0, 20.0, 20.0, 6.0'
+    assert data.count(claimed) == 1
+    path = tmp_path / "tampered.mcap"
+    path.write_bytes(data.replace(claimed, b'"a1": "(30.0, 30.0, 30.0, 6.0'))
+    return path
