@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -30,6 +31,7 @@ from hilrig.replay.verify import summary_lines, verify
 #: Inputs at least this large get a progress bar.
 LONG_INPUT_BYTES = 16 << 20
 PHASES = {"load": "reading chunks", "replay": "replaying ticks", "write": "writing ticks"}
+REDRAW_S = 0.1
 #: Exit status of a failed --verify (2 is an error that stopped the command).
 VERIFY_FAILED = 1
 
@@ -155,12 +157,16 @@ def _outputs(paths: list[Path]) -> list[Path]:
 
 @contextmanager
 def _progress(console: Console, *, enabled: bool) -> Iterator[_Phases | None]:
-    """A transient progress bar on stderr, one task per phase (load, replay, write)."""
+    """A transient progress bar on stderr, one task per phase (load, replay, write), redrawn
+    by the callbacks rather than by rich's refresh thread: the engine may fork a process pool,
+    and a fork must not happen while another thread holds the terminal's lock."""
     if not enabled:
         yield None
         return
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn())
-    with Progress(*columns, TimeRemainingColumn(), console=console, transient=True) as bar:
+    with Progress(
+        *columns, TimeRemainingColumn(), console=console, transient=True, auto_refresh=False
+    ) as bar:
         yield _Phases(bar)
 
 
@@ -170,12 +176,17 @@ class _Phases:
     def __init__(self, bar: Progress) -> None:
         self.bar = bar
         self.tasks: dict[str, TaskID] = {}
+        self.drawn = 0.0
 
     def __call__(self, phase: str, done: int, total: int) -> None:
         task = self.tasks.get(phase)
         if task is None:
             task = self.tasks[phase] = self.bar.add_task(PHASES.get(phase, phase), total=total)
-        self.bar.update(task, completed=done, total=total)
+        now = time.monotonic()
+        redraw = done >= total or now - self.drawn >= REDRAW_S
+        self.bar.update(task, completed=done, total=total, refresh=redraw)
+        if redraw:
+            self.drawn = now
 
 
 def _summary(

@@ -13,9 +13,11 @@ describes inputs, the spec syntax, outputs, ``--verify`` and performance.
 from hilrig.errors import ReplayError
 from hilrig.replay.engine import Progress, choose_jobs, replay, run
 from hilrig.replay.inputs import load_trace
+from hilrig.replay.outputs import load_results, write_mcap, write_parquet
 from hilrig.replay.results import INPUT_KEY, RUNS_KEY, Run, column_names, peak_offsets
 from hilrig.replay.specs import ControllerSpec, Setting, parse_specs
 from hilrig.replay.trace import ForceTrace
+from hilrig.replay.verify import VerifyReport, verify
 
 __all__ = [
     "INPUT_KEY",
@@ -26,11 +28,16 @@ __all__ = [
     "ReplayError",
     "Run",
     "Setting",
+    "VerifyReport",
     "choose_jobs",
     "column_names",
+    "load_results",
     "load_trace",
     "parse_specs",
     "peak_offsets",
     "replay",
     "run",
+    "verify",
+    "write_mcap",
+    "write_parquet",
 ]

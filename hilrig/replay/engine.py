@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from hilrig.control import ParameterError, kernel
+from hilrig.control import Law, ParameterError, kernel
 from hilrig.control.controller import Packed
 from hilrig.errors import ReplayError
 from hilrig.replay.blocks import Blocks
@@ -41,11 +41,12 @@ from hilrig.replay.trace import ForceTrace
 Progress = Callable[[str, int, int], None]
 #: Ticks per kernel call: progress granularity (about 20 ms of work on 9 axes).
 BLOCK_TICKS = 1 << 18
-#: The process pool pays once the runs hold this many axis-ticks each (measured: below it,
-#: forking and the shared mapping's page faults cost more than the second core saves) and
-#: there are more runs than one process would finish before the others start.
-POOL_MIN_AXIS_TICKS = 2_000_000
-POOL_MIN_RUNS = 4
+#: The process pool pays only for runs whose ticks are all full kernel steps - the state
+#: machine off and a law that is not fixed, so no quiet tick takes the kernel's shortcut - and
+#: only with at least two of them holding this many axis-ticks together. Measured (docs/replay.md):
+#: otherwise the runs are memory-bound, and forking plus the shared mapping's page faults cost
+#: more than the second core saves.
+POOL_MIN_HEAVY_AXIS_TICKS = 4_000_000
 
 
 def run(
@@ -98,7 +99,7 @@ def replay(
         )
     packed = [_packed(r, trace) for r in runs]
     force = np.require(trace.force, np.float64, ["C_CONTIGUOUS", "WRITEABLE"])
-    workers = choose_jobs(len(runs), axes * ticks) if jobs is None else max(1, jobs)
+    workers = choose_jobs(runs, axes * ticks) if jobs is None else max(1, jobs)
     workers = min(workers, len(runs))
     report = _Report(progress, ticks * len(runs))
     pool = workers > 1 and "fork" in multiprocessing.get_all_start_methods()
@@ -113,12 +114,13 @@ def replay(
     return frame(trace, runs, blocks)
 
 
-def choose_jobs(runs: int, axis_ticks: int) -> int:
-    """Processes for ``runs`` runs of ``axis_ticks`` axis-ticks each: the local cores when
-    the pool pays (see POOL_MIN_*), else 1."""
+def choose_jobs(runs: Sequence[Run], axis_ticks: int) -> int:
+    """Processes for ``runs`` of ``axis_ticks`` axis-ticks each: the local cores when the pool
+    pays (see POOL_MIN_HEAVY_AXIS_TICKS), else 1."""
+    heavy = sum(1 for r in runs if not r.params.state_machine and r.law is not Law.FIXED)
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    if runs >= POOL_MIN_RUNS and axis_ticks >= POOL_MIN_AXIS_TICKS and (cores or 1) > 1:
-        return min(runs, cores or 1)
+    if heavy >= 2 and heavy * axis_ticks >= POOL_MIN_HEAVY_AXIS_TICKS and (cores or 1) > 1:
+        return min(len(runs), cores or 1)
     return 1
 
 

@@ -116,6 +116,18 @@ def test_a_table_larger_than_memory_is_refused(monkeypatch: pytest.MonkeyPatch) 
 
 
 def test_the_pool_is_chosen_only_where_it_measured_faster() -> None:
-    assert engine.choose_jobs(3, 10**9) == 1  # three runs: one process was faster
-    assert engine.choose_jobs(8, 1000) == 1  # short runs: forking costs more
-    assert engine.choose_jobs(8, 10**7) == min(8, len(os.sched_getaffinity(0)))
+    def runs(*names: str) -> list[Run]:
+        sets = [
+            f"{n}.{g}.preset=paper-{p}"
+            for n in names
+            for g, p in (("cartesian", "end-effector"), ("joint", "joint"))
+        ]
+        return [Run.from_spec(s, AXES) for s in parse_specs([f"{n}={n[:-1]}" for n in names], sets)]
+
+    cores = min(2, len(os.sched_getaffinity(0)))
+    bare = runs("adaptive1", "variable-stiffness2")  # bare law: every tick a full step
+    assert engine.choose_jobs(bare, 10**7) == cores
+    assert engine.choose_jobs(bare, 1000) == 1  # short: forking costs more
+    assert engine.choose_jobs(bare[:1] + runs("fixed3"), 10**7) == 1  # fixed takes quiet ticks
+    loop = [Run.from_spec(s, AXES) for s in parse_specs()]  # state machines: memory-bound
+    assert engine.choose_jobs(loop, 10**9) == 1
