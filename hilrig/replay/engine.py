@@ -6,7 +6,7 @@ letting ``simulate`` allocate (T, A) arrays and then copying them into the table
 writes each tick's offset, velocity, damping and stiffness directly into the table's columns
 (strided views), in blocks of ticks so that progress can be reported; force and zeta are then
 filled column-wise with numpy. That halves the memory traffic, which is what a long replay
-spends its time on.
+spends its time on (see also :mod:`.blocks`, where that memory comes from).
 
 Runs go either one after the other in this process or, with ``jobs`` > 1, to a
 ``ProcessPoolExecutor`` of forked local processes that write into a shared anonymous mapping
@@ -87,8 +87,9 @@ def replay(
     if not runs:
         raise ReplayError("no controller runs to replay")
     names = [r.name for r in runs]
-    if len(set(names)) != len(names):
-        raise ReplayError(f"run names repeat: {', '.join(sorted(set(names)))}")
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise ReplayError(f"run names repeat: {', '.join(repeated)}")
     axes, ticks = len(trace.axis_names), trace.ticks
     need = table_bytes(axes, ticks * len(runs))
     have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")

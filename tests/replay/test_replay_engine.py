@@ -131,3 +131,10 @@ def test_the_pool_is_chosen_only_where_it_measured_faster() -> None:
     assert engine.choose_jobs(bare[:1] + runs("fixed3"), 10**7) == 1  # fixed takes quiet ticks
     loop = [Run.from_spec(s, AXES) for s in parse_specs()]  # state machines: memory-bound
     assert engine.choose_jobs(loop, 10**9) == 1
+
+
+def test_runs_built_by_hand_need_unique_names() -> None:
+    (spec,) = parse_specs(["fixed"])
+    same = Run.from_spec(spec, AXES)
+    with pytest.raises(ReplayError, match=r"^run names repeat: fixed$"):
+        replay(trace(ticks=10), [same, same])
