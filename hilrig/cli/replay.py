@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -22,11 +23,15 @@ from rich.table import Table
 from rich.text import Text
 
 from hilrig.cli.app import app
+from hilrig.cli.record import endpoints_from_config, print_result, read_config
 from hilrig.cli.recording import _one_line_errors
 from hilrig.errors import ReplayError
 from hilrig.replay import ForceTrace, Run, load_trace, parse_specs, peak_offsets, replay
 from hilrig.replay.outputs import MCAP_SUFFIXES, PARQUET_SUFFIXES, write_mcap, write_parquet
 from hilrig.replay.verify import summary_lines, verify
+from hilrig.rig.loop import LoopConfig
+from hilrig.rig.session import SessionConfig, record_session
+from hilrig.rig.virtual import VirtualInput
 
 #: Inputs at least this large get a progress bar.
 LONG_INPUT_BYTES = 16 << 20
@@ -91,6 +96,24 @@ def replay_command(
         int | None,
         typer.Option("--jobs", "-j", min=1, help="Processes (default: chosen by size)."),
     ] = None,
+    rig: Annotated[
+        str | None,
+        typer.Option(
+            help="HIL replay: play the trace into a live rig (emulated, or aubo with --config) "
+            "as a virtual collision and record the new session to --out."
+        ),
+    ] = None,
+    subject: Annotated[
+        str | None, typer.Option(help="HIL replay: pseudonymous subject id (default: FILE's).")
+    ] = None,
+    rate: Annotated[float, typer.Option(help="HIL replay: loop rate, Hz.")] = 1000.0,
+    start: Annotated[float, typer.Option(help="HIL replay: from this time of FILE, s.")] = 0.0,
+    duration: Annotated[
+        float | None, typer.Option(help="HIL replay: this much of FILE, s (default: the rest).")
+    ] = None,
+    config: Annotated[
+        Path | None, typer.Option(help="HIL replay on --rig aubo: TOML with [endpoints].")
+    ] = None,
 ) -> None:
     """Replay FILE's force trace through controllers and sweeps; summarise the peak offsets."""
     console = Console(highlight=False)
@@ -111,6 +134,14 @@ def replay_command(
         if not report.ok:
             raise typer.Exit(VERIFY_FAILED)
         return
+    if rig is not None:
+        if controller or setting or sweep or check or resample or jobs:
+            raise ReplayError(
+                "--rig replays into the live loop's controller: it takes no --controller, --set, "
+                "--sweep, --verify, --resample or --jobs"
+            )
+        _replay_into_rig(file, rig, subject, rate, start, duration, config, out or [])
+        return
     specs = parse_specs(controller or [], setting or [], sweep or [])
     outputs = _outputs(out or [])
     with _progress(errors, enabled=long_input) as progress:
@@ -120,7 +151,6 @@ def replay_command(
             progress=None if progress is None else lambda d, t: progress("load", d, t),
         )
         runs = [Run.from_spec(spec, trace.axis_names) for spec in specs]
-        # HIL replay (--rig) branches here: the same trace, played into a rig's live loop.
         table = replay(trace, runs, jobs=jobs, progress=progress)
         for note in trace.notes:
             errors.print(Text.assemble(("note: ", "yellow"), note))
@@ -204,3 +234,48 @@ def _summary(
     for run in table_runs:
         table.add_row(run.name, *(f"{1000 * peaks[run.name][a]:.2f}" for a in trace.axis_names))
     return table
+
+
+def _replay_into_rig(
+    file: Path,
+    rig: str,
+    subject: str | None,
+    rate_hz: float,
+    start_s: float,
+    duration_s: float | None,
+    config: Path | None,
+    out: list[Path],
+) -> None:
+    """HIL replay: FILE's trace as a virtual collision in a live session, recorded to --out."""
+    trace = load_trace(file)
+    virtual = VirtualInput.from_columns(
+        trace.t_s, trace.columns, start_s=start_s, duration_s=duration_s
+    )
+    subject_id = subject or (trace.session.subject_id if trace.session is not None else None)
+    if subject_id is None:
+        raise ReplayError(f"{file}: no subject id in the file: pass --subject")
+    if len(out) > 1 or (out and out[0].suffix.lower() not in MCAP_SUFFIXES):
+        raise ReplayError("--rig records one new session: pass at most one --out FILE.mcap")
+    path = (
+        out[0]
+        if out
+        else Path("recordings") / f"{subject_id}-replay-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    settings = read_config(config) if config is not None else {}
+    session = SessionConfig(
+        out=path,
+        subject_id=subject_id,
+        scenario="none",
+        rig=rig,
+        endpoints=endpoints_from_config(config, settings) if config is not None else None,
+        duration_s=virtual.delay_s + virtual.duration_s + 2.0,  # and 2 s to recover
+        trajectory="hold",
+        loop=LoopConfig(rate_hz=rate_hz),
+        virtual=virtual,
+        virtual_source=f"{file} from {start_s} s for {virtual.duration_s:.3f} s",
+    )
+    result = record_session(session, stop=threading.Event())
+    print_result(Console(soft_wrap=True, highlight=False), result)
+    if result.recorder_error:
+        raise ReplayError(f"the recording is incomplete: {result.recorder_error}")

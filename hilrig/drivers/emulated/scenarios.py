@@ -148,7 +148,23 @@ class HandContact:
         return ZERO6
 
 
+@dataclass
+class NoContact:
+    """Nobody touches the robot (e.g. while a recorded collision is replayed virtually)."""
+
+    name: str = "none"
+
+    def wrench_in_sensor(
+        self, t_s: float, pose_base_sensor: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        return ZERO6
+
+    def joint_torque(self, t_s: float) -> NDArray[np.float64]:
+        return ZERO6
+
+
 SCENARIOS: dict[str, Callable[[], Scenario]] = {
+    "none": NoContact,
     "paper-end-effector": PaperEndEffector,
     "paper-body": PaperBody,
     "hand-contact": HandContact,
