@@ -19,7 +19,7 @@ def test_an_expected_error_is_one_line_at_any_terminal_width() -> None:
     assert result.returncode == 2
     assert result.stdout == ""
     assert result.stderr == (
-        "error: unknown scenario '[bold]shove'; known: hand-contact, paper-body, "
+        "error: unknown scenario '[bold]shove'; known: hand-contact, none, paper-body, "
         "paper-end-effector\n"
     )
 

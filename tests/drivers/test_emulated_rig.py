@@ -114,7 +114,7 @@ def test_unknown_scenario_is_refused() -> None:
         scenario("shove")
     except HilrigError as err:
         assert str(err) == (
-            "unknown scenario 'shove'; known: hand-contact, paper-body, paper-end-effector"
+            "unknown scenario 'shove'; known: hand-contact, none, paper-body, paper-end-effector"
         )
     else:
         raise AssertionError("no error")
