@@ -56,3 +56,7 @@ class AnalysisError(HilrigError):
 
 class ReplayError(HilrigError):
     """An offline replay cannot run as asked: unusable input, bad controller spec or output."""
+
+
+class ViewError(HilrigError):
+    """A view cannot be built or shown: unusable input, bad display options, no viewer."""

@@ -109,6 +109,19 @@ class RobotModel:
         ).homogeneous
         return pose
 
+    def link_points(self, q_rad: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The arm as a polyline at ``q_rad`` (6,): the base, each joint's origin and the TCP,
+        (8, 3), m, base frame (a new array)."""
+        self._check(q_rad, "link_points")
+        pin.forwardKinematics(self._model, self._data, q_rad)
+        tip = pin.updateFramePlacement(self._model, self._data, self._tip_id).translation
+        points = np.empty((JOINTS + 2, 3))
+        points[0] = 0.0
+        for j in range(1, JOINTS + 1):
+            points[j] = self._data.oMi[j].translation
+        points[JOINTS + 1] = tip
+        return points
+
     def jacobian(self, q_rad: NDArray[np.float64]) -> NDArray[np.float64]:
         """TCP Jacobian (6, 6) at ``q_rad``, LOCAL_WORLD_ALIGNED.
 

@@ -1,0 +1,130 @@
+"""Where a view goes: the desktop viewer, an ``.rrd`` file, a viewer or server at a URL, or a
+web viewer served on localhost by Rerun's own server (``rerun --serve-web``)."""
+
+from __future__ import annotations
+
+import contextlib
+import shutil
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from enum import StrEnum
+from pathlib import Path
+
+import rerun as rr
+import rerun.blueprint as rrb
+
+from hilrig.errors import ViewError
+
+APPLICATION_ID = "hilrig"
+LOCALHOST = "127.0.0.1"
+GRPC_PORT = 9876  # Rerun's defaults
+WEB_PORT = 9090
+
+
+class SinkKind(StrEnum):
+    SPAWN = "spawn"  # start (or reuse) the desktop viewer
+    SAVE = "save"  # write an .rrd file
+    CONNECT = "connect"  # stream to a running viewer or server (gRPC URL)
+    WEB = "web"  # serve the web viewer on localhost
+
+
+@dataclass(frozen=True)
+class Sink:
+    """A destination: ``path`` for SAVE, ``url`` for CONNECT, ports for SPAWN and WEB."""
+
+    kind: SinkKind
+    path: Path | None = None
+    url: str | None = None
+    port: int = GRPC_PORT
+    web_port: int = WEB_PORT
+
+
+def grpc_url(port: int, host: str = LOCALHOST) -> str:
+    return f"rerun+http://{host}:{port}/proxy"
+
+
+def web_url(web_port: int, port: int) -> str:
+    return f"http://{LOCALHOST}:{web_port}/?url={grpc_url(port)}"
+
+
+class WebServer:
+    """``rerun --serve-web`` bound to 127.0.0.1: Rerun's gRPC proxy and its web viewer."""
+
+    def __init__(self, port: int, web_port: int) -> None:
+        exe = shutil.which("rerun", path=str(Path(sys.executable).parent))
+        command = [exe] if exe else [sys.executable, "-m", "rerun"]
+        command += ["--serve-web", "--bind", LOCALHOST, "--port", str(port)]
+        command += ["--web-viewer-port", str(web_port)]
+        self.port, self.web_port = port, web_port
+        try:
+            self.process = subprocess.Popen(
+                command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+            )
+        except OSError as err:
+            raise ViewError(f"cannot start the Rerun server: {err}") from err
+        self._wait_listening()
+
+    def _wait_listening(self, timeout_s: float = 20.0) -> None:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self.process.poll() is not None:
+                _, err = self.process.communicate()
+                last = (err or "").strip().splitlines()[-1:] or ["no output"]
+                raise ViewError(f"the Rerun web server exited: {last[0]}")
+            if _listening(self.port) and _listening(self.web_port):
+                return
+            time.sleep(0.05)
+        self.close()
+        raise ViewError(
+            f"the Rerun web server did not listen on ports {self.port} and {self.web_port} "
+            f"within {timeout_s:g} s"
+        )
+
+    @property
+    def url(self) -> str:
+        return web_url(self.web_port, self.port)
+
+    def close(self) -> None:
+        if self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(5)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+
+
+def _listening(port: int) -> bool:
+    with contextlib.closing(socket.socket()) as s:
+        s.settimeout(0.2)
+        return s.connect_ex((LOCALHOST, port)) == 0
+
+
+def open_stream(
+    sink: Sink, blueprint: rrb.Blueprint, *, recording_id: str | None = None
+) -> tuple[rr.RecordingStream, WebServer | None]:
+    """A recording stream going to ``sink`` with ``blueprint`` as its default layout, and the
+    web server it started (WEB only; close it when done). Raises ViewError."""
+    rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+    server = None
+    try:
+        match sink.kind:
+            case SinkKind.SAVE:
+                assert sink.path is not None
+                rec.save(sink.path, default_blueprint=blueprint)
+            case SinkKind.CONNECT:
+                rec.connect_grpc(sink.url, default_blueprint=blueprint)
+            case SinkKind.SPAWN:
+                rec.spawn(port=sink.port, default_blueprint=blueprint)
+            case SinkKind.WEB:
+                server = WebServer(sink.port, sink.web_port)
+                rec.connect_grpc(grpc_url(sink.port), default_blueprint=blueprint)
+    except (OSError, RuntimeError, ValueError) as err:
+        if server is not None:
+            server.close()
+        target = sink.path or sink.url or sink.kind.value
+        raise ViewError(f"cannot open the view ({target}): {err}") from err
+    return rec, server
