@@ -16,6 +16,7 @@ from hilrig.cli import (  # noqa: F401  (register their commands)
     recording,
     replay,
     rig,
+    view,
 )
 from hilrig.cli.app import app
 from hilrig.errors import HilrigError

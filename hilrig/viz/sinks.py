@@ -4,10 +4,9 @@ web viewer served on localhost by Rerun's own server (``rerun --serve-web``)."""
 from __future__ import annotations
 
 import contextlib
-import shutil
+import os
 import socket
 import subprocess
-import sys
 import time
 from dataclasses import dataclass
 from enum import StrEnum
@@ -15,6 +14,7 @@ from pathlib import Path
 
 import rerun as rr
 import rerun.blueprint as rrb
+import rerun_cli
 
 from hilrig.errors import ViewError
 
@@ -54,9 +54,7 @@ class WebServer:
     """``rerun --serve-web`` bound to 127.0.0.1: Rerun's gRPC proxy and its web viewer."""
 
     def __init__(self, port: int, web_port: int) -> None:
-        exe = shutil.which("rerun", path=str(Path(sys.executable).parent))
-        command = [exe] if exe else [sys.executable, "-m", "rerun"]
-        command += ["--serve-web", "--bind", LOCALHOST, "--port", str(port)]
+        command = [str(rerun_binary()), "--serve-web", "--bind", LOCALHOST, "--port", str(port)]
         command += ["--web-viewer-port", str(web_port)]
         self.port, self.web_port = port, web_port
         try:
@@ -95,6 +93,16 @@ class WebServer:
             except subprocess.TimeoutExpired:
                 self.process.kill()
                 self.process.wait()
+
+
+def rerun_binary() -> Path:
+    """The Rerun CLI's executable itself (``RERUN_CLI_PATH`` if set), not the ``rerun`` script
+    that wraps it: a signal to the script would not reach the server it started."""
+    override = os.environ.get("RERUN_CLI_PATH")
+    path = Path(override) if override else Path(rerun_cli.__file__).with_name("rerun")
+    if not path.is_file():
+        raise ViewError(f"no Rerun CLI at {path}: reinstall rerun-sdk")
+    return path
 
 
 def _listening(port: int) -> bool:

@@ -1,0 +1,162 @@
+"""``hilrig view``: a session and its replays side by side in the Rerun viewer."""
+
+from __future__ import annotations
+
+import signal
+import threading
+from pathlib import Path
+from types import FrameType
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.text import Text
+
+from hilrig.cli.app import app
+from hilrig.cli.recording import _one_line_errors
+from hilrig.errors import ViewError
+from hilrig.replay import parse_specs
+from hilrig.viz import (
+    DEFAULT_MAX_POINTS,
+    DEFAULT_MAX_POSES,
+    Sink,
+    SinkKind,
+    ViewReport,
+    layout,
+    open_stream,
+    recording_id,
+    scene_from_session,
+    show_scene,
+)
+from hilrig.viz.sinks import GRPC_PORT, WEB_PORT
+
+RRD_SUFFIX = ".rrd"
+URL_SCHEMES = ("rerun://", "rerun+http://", "rerun+https://")
+
+
+@app.command("view")
+@_one_line_errors
+def view_command(
+    file: Annotated[Path, typer.Argument(help="A recorded session (.mcap).", show_default=False)],
+    controller: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--controller",
+            "-c",
+            help="Replay the session's input through this controller too: LAW or NAME=LAW "
+            "(adaptive, variable-stiffness, fixed). Repeatable.",
+        ),
+    ] = None,
+    setting: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="NAME.[GROUP.]PARAM=VALUE for a --controller (repeatable)."),
+    ] = None,
+    save: Annotated[
+        Path | None, typer.Option(help="Write the view to this .rrd file instead of showing it.")
+    ] = None,
+    web: Annotated[
+        bool,
+        typer.Option(
+            help="Serve the web viewer on 127.0.0.1 (--web-port) until Ctrl-C, instead of "
+            "spawning the desktop viewer."
+        ),
+    ] = False,
+    connect: Annotated[
+        str | None,
+        typer.Option(
+            help="Stream to a running viewer or server, e.g. rerun+http://127.0.0.1:9876/proxy."
+        ),
+    ] = None,
+    port: Annotated[
+        int, typer.Option(min=1, max=65535, help="Viewer gRPC port (desktop and web).")
+    ] = GRPC_PORT,
+    web_port: Annotated[
+        int, typer.Option(min=1, max=65535, help="Web viewer HTTP port (--web).")
+    ] = WEB_PORT,
+    max_points: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            help="Display at most this many points per time series (min/max per "
+            "bucket); 0 shows every sample. The data is never changed.",
+        ),
+    ] = DEFAULT_MAX_POINTS,
+    max_poses: Annotated[
+        int,
+        typer.Option(min=0, help="Robot poses and force arrows in 3D at most (0: every tick)."),
+    ] = DEFAULT_MAX_POSES,
+) -> None:
+    """Show FILE (robot, end trajectories, forces, offsets, b, k, zeta, contact, events) and
+    its replays through --controller runs, one colour per controller in every view."""
+    sink = _sink(save, web, connect, port, web_port)
+    console = Console(highlight=False, soft_wrap=True)
+    specs = parse_specs(controller or [], setting or [], []) if controller else []
+    if setting and not controller:
+        raise ViewError("--set changes a --controller: name one")
+    scene = scene_from_session(file, specs)
+    rec, server = open_stream(sink, layout(scene, max_points), recording_id=recording_id(scene))
+    try:
+        report = show_scene(rec, scene, max_points=max_points, max_poses=max_poses)
+        rec.flush()
+        _print_report(console, report, scene.source)
+        if save is not None:
+            console.print(f"wrote {save}")
+        if server is not None:
+            console.print(f"web viewer: {server.url}  (Ctrl-C to stop)")
+            _wait_for_interrupt()
+    finally:
+        rec.disconnect()
+        if server is not None:
+            server.close()
+
+
+def _sink(save: Path | None, web: bool, connect: str | None, port: int, web_port: int) -> Sink:
+    """The one destination asked for; checked before anything is read."""
+    chosen = [name for name, on in (("--save", save), ("--web", web), ("--connect", connect)) if on]
+    if len(chosen) > 1:
+        raise ViewError(f"{' and '.join(chosen)}: choose one destination")
+    if save is not None:
+        if save.suffix.lower() != RRD_SUFFIX:
+            raise ViewError(f"--save {save}: the file must end in {RRD_SUFFIX}")
+        if not save.parent.is_dir():
+            raise ViewError(f"--save {save}: directory {save.parent} does not exist")
+        return Sink(SinkKind.SAVE, path=save)
+    if connect is not None:
+        if not connect.startswith(URL_SCHEMES):
+            raise ViewError(
+                f"--connect {connect}: expected a URL starting with {', '.join(URL_SCHEMES)}"
+            )
+        return Sink(SinkKind.CONNECT, url=connect)
+    if web:
+        if port == web_port:
+            raise ViewError(f"--port and --web-port are both {port}: they must differ")
+        return Sink(SinkKind.WEB, port=port, web_port=web_port)
+    return Sink(SinkKind.SPAWN, port=port)
+
+
+def _print_report(console: Console, report: ViewReport, source: str) -> None:
+    console.print(f"{source}: {len(report.runs)} run(s)")
+    for label, color in report.runs:
+        console.print(Text.assemble(("  ■ ", color), label))
+    series = report.logged.series
+    if series.active:
+        console.print(
+            f"display decimated: at most {series.points} of {series.samples} samples per "
+            "series (min/max per bucket); the file is untouched"
+        )
+
+
+def _wait_for_interrupt() -> None:
+    """Block until Ctrl-C or SIGTERM."""
+    done = threading.Event()
+
+    def stop(signum: int, frame: FrameType | None) -> None:
+        done.set()
+
+    previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        while not done.wait(0.5):
+            pass
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
