@@ -73,7 +73,7 @@ def analyze_command(
     console = Console(highlight=False)
     if not console.is_terminal:  # keep whole rows when piped
         console = Console(highlight=False, width=160)
-    tables = [_print_source(console, a, chosen, delta) for a in analyses]
+    tables = [print_source(console, a, chosen, delta) for a in analyses]
     sessions = [a for a in analyses if a.source.kind is SourceKind.SESSION]
     if len(sessions) > 1:
         long = values(sessions)
@@ -90,9 +90,7 @@ def analyze_command(
         console.print(f"wrote {written}")
 
 
-def _print_source(
-    console: Console, analysis: Analysis, baseline: str, delta: float
-) -> pd.DataFrame:
+def print_source(console: Console, analysis: Analysis, baseline: str, delta: float) -> pd.DataFrame:
     """Print a source's events and its runs' comparison (against its own first run when
     ``baseline`` is not among them, as for a session of another controller); return it.
 

@@ -9,20 +9,26 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from hilrig.analysis import DEFAULT_EVENTS, analyze, load_replay
+from hilrig.cli.analyze import print_source
 from hilrig.cli.app import app
 from hilrig.cli.record import print_result
 from hilrig.paper.report import rich_table
 from hilrig.paper.reproduce import reproduce
 from hilrig.recording import load
+from hilrig.replay import parse_specs, run, write_parquet
 from hilrig.rig.loop import LoopConfig
 from hilrig.rig.records import AXIS_NAMES
 from hilrig.rig.session import SessionConfig, record_session
+from hilrig.viz import save_rrd, scene_from_session
 
 DEMO_SUBJECT = "D001"  # a pseudonym reserved for demonstrations
 SESSIONS = (  # (scenario, trajectory, seconds): each collision ends ~2 s before the session
     ("paper-end-effector", "circle", 8.0),
     ("paper-body", "square", 7.5),
 )
+LAWS = ("adaptive", "variable-stiffness", "fixed")  # compared, against fixed
+OUTPUTS = (".mcap", "-replay.parquet", ".rrd")  # per session, replaced by a new demo
 
 
 def peak_offsets(path: Path) -> list[float]:
@@ -37,8 +43,14 @@ def demo(
         Path("build/demo")
     ),
 ) -> None:
-    """The paper's simulations, then its end-effector and body collisions on the emulated rig."""
+    """The paper's simulations, then its end-effector and body collisions on the emulated rig,
+    each replayed through the three laws, compared, and saved as a Rerun view (.rrd)."""
     console = Console(soft_wrap=True)
+    if not console.is_terminal:  # keep whole table rows when piped
+        console = Console(soft_wrap=True, width=160)
+    for scenario, _, _ in SESSIONS:  # a new demo replaces its own earlier outputs
+        for suffix in OUTPUTS:
+            (out / f"{scenario}{suffix}").unlink(missing_ok=True)
     reproduction = reproduce(out / "paper")
     console.print(rich_table(reproduction.sections[0]))
     console.print(f"paper tables and figures in {out / 'paper'}\n", highlight=False)
@@ -59,6 +71,7 @@ def demo(
         )
         print_result(console, result)
         peaks[scenario] = peak_offsets(result.path)
+        compare_and_view(console, result.path, out / f"{scenario}-replay.parquet")
     table = Table(title="recorded sessions: largest offset per axis")
     table.add_column("axis")
     for scenario in peaks:
@@ -67,3 +80,16 @@ def demo(
         unit = "mm" if i < 3 else "mrad"
         table.add_row(f"{name} ({unit})", *(f"{1000 * p[i]:.1f}" for p in peaks.values()))
     console.print(table)
+
+
+def compare_and_view(console: Console, session: Path, replayed: Path) -> None:
+    """Replay ``session`` through the three laws, print their comparison against fixed, save
+    the results beside it and its view as ``<session>.rrd``."""
+    specs = parse_specs(list(LAWS))
+    write_parquet(run(session, specs), replayed)
+    print_source(console, analyze(load_replay(replayed)), "fixed", DEFAULT_EVENTS.delta)
+    view = session.with_suffix(".rrd")
+    save_rrd(scene_from_session(session, specs), view)
+    console.print(
+        f"replays in {replayed}; view: rerun {view}  (or: hilrig view {session} -c ...)\n"
+    )
