@@ -51,6 +51,15 @@ def view_command(
         list[str] | None,
         typer.Option("--set", help="NAME.[GROUP.]PARAM=VALUE for a --controller (repeatable)."),
     ] = None,
+    results: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--results",
+            "-r",
+            help="Show the runs of a replay result of FILE too (hilrig replay FILE --out "
+            "X.parquet). Repeatable.",
+        ),
+    ] = None,
     save: Annotated[
         Path | None, typer.Option(help="Write the view to this .rrd file instead of showing it.")
     ] = None,
@@ -93,7 +102,7 @@ def view_command(
     specs = parse_specs(controller or [], setting or [], []) if controller else []
     if setting and not controller:
         raise ViewError("--set changes a --controller: name one")
-    scene = scene_from_session(file, specs)
+    scene = scene_from_session(file, specs, results or [])
     rec, server = open_stream(sink, layout(scene, max_points), recording_id=recording_id(scene))
     try:
         report = show_scene(rec, scene, max_points=max_points, max_poses=max_poses)

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from hilrig.errors import RecordingError, ReplayError, ViewError
 from hilrig.recording import EventKind, SessionInfo, read
-from hilrig.replay import ControllerSpec, Run, replay
+from hilrig.replay import ControllerSpec, Run, load_results, replay
 from hilrig.replay.inputs import STATE_TOPIC, session_index, trace_from_state
 from hilrig.replay.specs import GROUP_AXES
 
@@ -124,9 +124,15 @@ class Scene:
         return float(self.t_s[-1] - self.t_s[0]) if len(self.t_s) else 0.0
 
 
-def scene_from_session(path: PathLike, controllers: Sequence[ControllerSpec] = ()) -> Scene:
-    """The scene of the session in ``path`` with the recorded controller and ``controllers``
-    replayed on its recorded input. Raises ViewError (one line naming the file)."""
+def scene_from_session(
+    path: PathLike,
+    controllers: Sequence[ControllerSpec] = (),
+    results: Sequence[PathLike] = (),
+) -> Scene:
+    """The scene of the session in ``path`` with the recorded controller, ``controllers``
+    replayed on its recorded input and the runs of replay result tables ``results`` (written by
+    ``hilrig replay --out X.parquet`` from this session). Raises ViewError (one line naming the
+    file)."""
     p = Path(path)
     if p.suffix.lower() != ".mcap":
         raise ViewError(f"{p}: not a session file (.mcap)")
@@ -138,17 +144,25 @@ def scene_from_session(path: PathLike, controllers: Sequence[ControllerSpec] = (
         state = loaded.frames[STATE_TOPIC]
         trace = trace_from_state(p, state, index)
         runs = [Run.from_spec(spec, trace.axis_names) for spec in controllers]
-        names = [RECORDED, *(r.name for r in runs)]
-        if len(set(names)) != len(names):
-            raise ViewError(f"{p}: the controller runs need distinct names, got {names}")
         table = replay(trace, runs) if runs else None
+        stored = [(Path(r), *load_results(r)) for r in results]
     except (RecordingError, ReplayError) as err:
         raise ViewError(str(err)) from err
+    replays = _replay_curves(table, [r.name for r in runs], trace.axis_names, trace.ticks)
+    for result_path, result, recorded_runs in stored:
+        _check_same_input(result_path, result, trace.t_s, trace.axis_names)
+        replays += _replay_curves(result, list(recorded_runs), trace.axis_names, trace.ticks)
+    names = [RECORDED, *(r.name for r in replays)]
+    twice = next((n for i, n in enumerate(names) if n in names[:i]), None)
+    if twice is not None:
+        raise ViewError(
+            f"{p}: two runs are named {twice!r} (runs: {', '.join(names)}); name a controller"
+            " with NAME=LAW"
+        )
     frames = loaded.frames
     t0_ns = int(state.index[0])
     controller = str(state["controller"].iloc[0]) if "controller" in state else "?"
     recorded = _recorded_curves(state, len(trace.axis_names), f"{RECORDED} ({controller})")
-    replays = _replay_curves(table, [r.name for r in runs], trace.axis_names, trace.ticks)
     return Scene(
         source=str(p),
         axis_names=trace.axis_names,
@@ -223,6 +237,26 @@ def _replay_curves(
             )
         )
     return out
+
+
+def _check_same_input(
+    path: Path, table: pd.DataFrame, t_s: FloatArray, axes: Sequence[str]
+) -> None:
+    """``table`` must be a replay of this session's input: same axes, ticks and times."""
+    missing = [a for a in axes if f"offset_{a}" not in table]
+    runs = table["run"].nunique()
+    if missing or len(table) != runs * len(t_s):
+        raise ViewError(
+            f"{path}: not a replay of this session ({len(table)} rows for {runs} run(s), the "
+            f"session has {len(t_s)} ticks{'; no axes ' + ', '.join(missing) if missing else ''})"
+        )
+    first = table["t_s"].to_numpy()[: len(t_s)]
+    if not np.allclose(first, t_s, rtol=0.0, atol=1e-6):
+        n = int(np.argmax(~np.isclose(first, t_s, rtol=0.0, atol=1e-6)))
+        raise ViewError(
+            f"{path}: not a replay of this session (tick {n} at {first[n]:.6f} s, the session's"
+            f" at {t_s[n]:.6f} s)"
+        )
 
 
 def _series(

@@ -11,7 +11,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rrd_helpers import Rrd
 
-from hilrig.replay import parse_specs, run
+from hilrig.replay import ForceTrace, load_trace, parse_specs, run, write_parquet
 from hilrig.robot import RobotModel
 from hilrig.viz import ViewError, save_rrd, scene_from_session
 from hilrig.viz.log import FORCE_SCALE_M_PER_N
@@ -212,5 +212,40 @@ def test_a_file_that_is_not_a_session_is_refused(tmp_path: Path) -> None:
 
 
 def test_duplicate_run_names_are_refused() -> None:
-    with pytest.raises(ViewError, match=r"distinct names, got \['recorded', 'recorded'\]"):
+    with pytest.raises(
+        ViewError,
+        match=r"two runs are named 'recorded' \(runs: recorded, recorded\); name a controller "
+        "with NAME=LAW$",
+    ):
         scene_from_session(EXAMPLE, parse_specs(["recorded=fixed"]))
+
+
+def test_stored_replay_results_join_the_view(tmp_path: Path) -> None:
+    stored = tmp_path / "results.parquet"
+    table = run(EXAMPLE, parse_specs(["a=fixed", "b=variable-stiffness"]))
+    write_parquet(table, stored)
+    scene = scene_from_session(EXAMPLE, parse_specs(["adaptive"]), [stored])
+    assert [r.name for r in scene.runs] == ["recorded", "adaptive", "a", "b"]
+    assert scene.runs[3].label == "b (variable-stiffness)"
+    for name, curves in (("a", scene.runs[2]), ("b", scene.runs[3])):
+        rows = table[table["run"] == name]
+        np.testing.assert_array_equal(curves.damping[:, 0], rows["damping_x"].to_numpy())
+        np.testing.assert_array_equal(curves.contact[:, 4], rows["contact_joint2"].to_numpy())
+
+
+def test_results_of_another_input_are_refused(tmp_path: Path) -> None:
+    stored = tmp_path / "short.parquet"
+    trace = load_trace(EXAMPLE)
+    short = ForceTrace(trace.t_s[:100], trace.force[:100], trace.axis_names, "x", trace.dt_s)
+    write_parquet(run(short, parse_specs(["fixed"])), stored)
+    with pytest.raises(
+        ViewError,
+        match=rf"^{stored}: not a replay of this session \(100 rows for 1 run\(s\), the session "
+        r"has 3499 ticks\)$",
+    ):
+        scene_from_session(EXAMPLE, (), [stored])
+    shifted = tmp_path / "shifted.parquet"
+    moved = ForceTrace(trace.t_s + 0.5, trace.force, trace.axis_names, "x", trace.dt_s)
+    write_parquet(run(moved, parse_specs(["fixed"])), shifted)
+    with pytest.raises(ViewError, match=r"not a replay of this session \(tick 0 at 0\.500000 s"):
+        scene_from_session(EXAMPLE, (), [shifted])
