@@ -103,6 +103,9 @@ def view_command(
     if setting and not controller:
         raise ViewError("--set changes a --controller: name one")
     scene = scene_from_session(file, specs, results or [])
+    warnings = Console(stderr=True, highlight=False, soft_wrap=True)
+    for note in scene.notes:
+        warnings.print(Text.assemble(("warning: ", "yellow"), note))
     rec, server = open_stream(sink, layout(scene, max_points), recording_id=recording_id(scene))
     try:
         report = show_scene(rec, scene, max_points=max_points, max_poses=max_poses)

@@ -93,7 +93,8 @@ class Scene:
     ``t_s`` (T,) the control ticks; ``force`` (T, A) the controller input per axis of
     ``axis_names`` (N, N*m); ``runs`` the recorded controller first, then the replays, all on
     those ticks. ``desired`` (X_d position, m, base frame), ``joints`` (measured q, rad) and
-    ``wrist`` (F/T as measured, sensor frame) are None where the file has none.
+    ``wrist`` (F/T as measured, sensor frame) are None where the file has none; ``notes`` are
+    the problems met reading the file (a truncated end, a corrupt chunk), shown with the view.
     """
 
     source: str
@@ -108,6 +109,7 @@ class Scene:
     urdf: str | None = None
     session: SessionInfo | None = None
     start_ns: int = 0
+    notes: tuple[str, ...] = ()  # problems met reading the file (truncation, bad chunks)
 
     @property
     def groups(self) -> dict[str, tuple[int, ...]]:
@@ -176,6 +178,7 @@ def scene_from_session(
         urdf=_urdf(frames.get("/robot_description")),
         session=index.session,
         start_ns=t0_ns,
+        notes=loaded.problems,
     )
 
 

@@ -57,6 +57,10 @@ def about(scene: Scene, decimation: Decimation, max_poses: int) -> str:
         f" X_d + e (its colour); the force arrow draws {FORCE_SCALE_M_PER_N * 1000:g} mm per N.",
         "",
     ]
+    if scene.notes:
+        lines += ["**Problems reading the file** (what is shown is what could be read):", ""]
+        lines += [f"- {note}" for note in scene.notes]
+        lines.append("")
     if decimation.active:
         lines.append(
             f"**Display decimated**: each series shows at most {decimation.points} of its"

@@ -189,3 +189,13 @@ def test_a_missing_file_is_named(tmp_path: Path) -> None:
     assert result.returncode == 2
     assert result.stderr.startswith(f"error: {tmp_path / 'gone.mcap'}")
     assert len(result.stderr.splitlines()) == 1
+
+
+def test_a_truncated_session_is_viewed_with_a_warning(tmp_path: Path) -> None:
+    cut = tmp_path / "cut.mcap"
+    data = EXAMPLE.read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    result = hilrig("view", str(cut), "--save", str(tmp_path / "cut.rrd"))
+    assert result.returncode == 0, result.stderr
+    lines = result.stderr.splitlines()
+    assert lines and all(line.startswith(f"warning: {cut}") for line in lines)

@@ -11,6 +11,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rrd_helpers import Rrd
 
+from hilrig.recording import ControllerSample, SessionInfo, SessionWriter, default_channels
 from hilrig.replay import ForceTrace, load_trace, parse_specs, run, write_parquet
 from hilrig.robot import RobotModel
 from hilrig.viz import ViewError, save_rrd, scene_from_session
@@ -249,3 +250,34 @@ def test_results_of_another_input_are_refused(tmp_path: Path) -> None:
     write_parquet(run(moved, parse_specs(["fixed"])), shifted)
     with pytest.raises(ViewError, match=r"not a replay of this session \(tick 0 at 0\.500000 s"):
         scene_from_session(EXAMPLE, (), [shifted])
+
+
+def test_a_truncated_session_is_shown_with_what_was_lost(tmp_path: Path) -> None:
+    cut = tmp_path / "cut.mcap"
+    data = EXAMPLE.read_bytes()
+    cut.write_bytes(data[: int(len(data) * 0.6)])
+    scene = scene_from_session(cut)
+    assert scene.notes and all(str(cut) in n for n in scene.notes)
+    assert 0 < len(scene.t_s) < 3499
+    out = tmp_path / "cut.rrd"
+    save_rrd(scene, out)
+    (note,) = Rrd(out).static("/about", "TextDocument:text")
+    assert "Problems reading the file" in note and scene.notes[0] in note
+
+
+def test_a_session_with_the_controller_state_only_has_no_robot(tmp_path: Path) -> None:
+    path = tmp_path / "state-only.mcap"
+    info = SessionInfo("s", "S001", "emulated", "adaptive", 1_767_225_600_000_000_000, 0)
+    with SessionWriter(path, info, channels=default_channels()) as writer:
+        for i in range(50):
+            f = [float(i)] * 9
+            writer.write(
+                "/controller/state", ControllerSample(i * 1_000_000, f, f, f, f, f, f, f, [0] * 9)
+            )
+    out = tmp_path / "state-only.rrd"
+    save_rrd(scene_from_session(path, parse_specs(["fixed"])), out)
+    entities = Rrd(out).entities(static=False)
+    assert "/series/offset/x/fixed" in entities
+    assert not {e for e in entities if e.startswith("/world")}
+    _, values = Rrd(out).scalars("/series/input/joint6")
+    np.testing.assert_array_equal(values, np.arange(50.0))
