@@ -152,27 +152,27 @@ def log_styles(
         unit = "N" if axis in CARTESIAN else "N*m"
         rec.log(
             paths.input_series(axis),
-            rr.SeriesLines(colors=color, names=f"{axis} ({unit})"),
+            _lines(color, f"{axis} ({unit})"),
             static=True,
         )
         for quantity in paths.QUANTITIES:
             for run in runs:
                 rec.log(
                     paths.run_series(quantity, axis, run.name),
-                    rr.SeriesLines(colors=run.color, names=run.label),
+                    _lines(run.color, run.label),
                     static=True,
                 )
     for i, channel in enumerate(paths.WRIST_CHANNELS):
         rec.log(
             paths.wrist_series(channel),
-            rr.SeriesLines(colors=style.AXIS_COLORS[CARTESIAN[i % 3]], names=channel),
+            _lines(style.AXIS_COLORS[CARTESIAN[i % 3]], channel),
             static=True,
         )
     for j in range(6):
         joint = f"joint{j + 1}"
         rec.log(
             paths.joint_series(joint),
-            rr.SeriesLines(colors=style.AXIS_COLORS[joint], names=f"{joint} (rad)"),
+            _lines(style.AXIS_COLORS[joint], f"{joint} (rad)"),
             static=True,
         )
     states = list(ContactState)
@@ -188,6 +188,12 @@ def log_styles(
         _trajectory_style(rec, paths.trajectory(name), color)
     for run in runs:
         _trajectory_style(rec, paths.run_trajectory(run.name), run.color)
+
+
+def _lines(color: style.RGB, name: str) -> rr.SeriesLines:
+    """A series' legend and colour; zoomed out, the viewer draws each pixel column's min and
+    max (not their mean), so peaks stay visible at every zoom, like the decimation."""
+    return rr.SeriesLines(colors=color, names=name, aggregation_policy="MinMax")
 
 
 def _trajectory_style(rec: rr.RecordingStream, folder: str, color: style.RGB) -> None:

@@ -181,6 +181,9 @@ def test_decimation_keeps_peaks_and_the_budget(full: Rrd, thinned: Rrd) -> None:
     (note,) = thinned.static("/about", "TextDocument:text")
     assert "Display decimated" in note and "untouched" in note
     assert "no decimation" in full.static("/about", "TextDocument:text")[0]
+    minmax = 5  # rerun.components.AggregationPolicy.MinMax: zoomed out, peaks stay visible
+    for entity in ("/series/input/x", "/series/offset/x/fixed", "/series/joints/joint1"):
+        assert full.static(entity, "SeriesLines:aggregation_policy") == [minmax]
 
 
 def test_the_layout_holds_every_view(full: Rrd, thinned: Rrd) -> None:
