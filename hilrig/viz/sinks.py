@@ -7,6 +7,7 @@ import contextlib
 import os
 import socket
 import subprocess
+import tempfile
 import time
 from dataclasses import dataclass
 from enum import StrEnum
@@ -25,7 +26,7 @@ WEB_PORT = 9090
 
 
 class SinkKind(StrEnum):
-    SPAWN = "spawn"  # start (or reuse) the desktop viewer
+    SPAWN = "spawn"  # start (or reuse) the desktop viewer on a port
     SAVE = "save"  # write an .rrd file
     CONNECT = "connect"  # stream to a running viewer or server (gRPC URL)
     WEB = "web"  # serve the web viewer on localhost
@@ -95,6 +96,32 @@ class WebServer:
                 self.process.wait()
 
 
+def spawn_viewer(port: int, timeout_s: float = 20.0) -> None:
+    """Start the desktop viewer listening on ``port`` (detached: it outlives this process), or
+    use the one already there. Raises ViewError, with the viewer's last words, if it exits or
+    does not listen within ``timeout_s`` (no display: use a file, the web viewer or a URL)."""
+    if _listening(port):
+        return
+    command = [str(rerun_binary()), "--port", str(port), "--expect-data-soon"]
+    with tempfile.TemporaryFile(mode="w+") as log:
+        try:
+            viewer = subprocess.Popen(
+                command, stdout=log, stderr=log, start_new_session=True, text=True
+            )
+        except OSError as err:
+            raise ViewError(f"cannot start the Rerun viewer: {err}") from err
+        deadline = time.monotonic() + timeout_s
+        while not _listening(port):
+            if viewer.poll() is not None or time.monotonic() > deadline:
+                log.seek(0)
+                words = [line.strip() for line in log.read().splitlines() if line.strip()]
+                raise ViewError(
+                    f"the Rerun viewer did not start ({words[-1] if words else 'no output'});"
+                    " without a display use --save, --web or --connect"
+                )
+            time.sleep(0.05)
+
+
 def rerun_binary() -> Path:
     """The Rerun CLI's executable itself (``RERUN_CLI_PATH`` if set), not the ``rerun`` script
     that wraps it: a signal to the script would not reach the server it started."""
@@ -126,7 +153,8 @@ def open_stream(
             case SinkKind.CONNECT:
                 rec.connect_grpc(sink.url, default_blueprint=blueprint)
             case SinkKind.SPAWN:
-                rec.spawn(port=sink.port, default_blueprint=blueprint)
+                spawn_viewer(sink.port)
+                rec.connect_grpc(grpc_url(sink.port), default_blueprint=blueprint)
             case SinkKind.WEB:
                 server = WebServer(sink.port, sink.web_port)
                 rec.connect_grpc(grpc_url(sink.port), default_blueprint=blueprint)
@@ -134,5 +162,6 @@ def open_stream(
         if server is not None:
             server.close()
         target = sink.path or sink.url or sink.kind.value
-        raise ViewError(f"cannot open the view ({target}): {err}") from err
+        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+        raise ViewError(f"cannot open the view ({target}): {first}") from err
     return rec, server

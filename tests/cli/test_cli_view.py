@@ -4,6 +4,7 @@ and its one-line errors."""
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import socket
 import subprocess
@@ -199,3 +200,22 @@ def test_a_truncated_session_is_viewed_with_a_warning(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     lines = result.stderr.splitlines()
     assert lines and all(line.startswith(f"warning: {cut}") for line in lines)
+
+
+def test_without_a_display_the_desktop_viewer_fails_in_one_line(tmp_path: Path) -> None:
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET")
+    }
+    result = subprocess.run(
+        [str(HILRIG), "view", str(EXAMPLE), "--port", str(free_port())],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
+    assert result.returncode == 2
+    assert len(result.stderr.splitlines()) == 1
+    assert result.stderr.startswith("error: the Rerun viewer did not start (")
+    assert result.stderr.endswith("); without a display use --save, --web or --connect\n")
