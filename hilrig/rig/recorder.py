@@ -13,6 +13,10 @@ what the rings hold, turns the rows into samples (:func:`ft_samples` ...) and wr
 on SIGTERM, or when the loop process dies. Only SIGKILL leaves a truncated file, missing at
 most the writer's open chunk (0.25 s): ``hilrig recover`` makes it whole.
 
+With a live view (``hilrig record --view``), the recorder also forwards a decimated copy of what
+it receives (:class:`ViewForwarder`) to the viewer-feed process of :mod:`hilrig.viz.live`; that
+copy never waits and never costs a row of the recording.
+
 Shutdown order: stop the loop, then :meth:`RecorderProcess.stop` (every row committed and every
 event sent before it is recorded), then :meth:`RecorderFeed.close`.
 """
@@ -24,6 +28,7 @@ import multiprocessing
 import os
 import queue
 import signal
+import threading
 import time
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -33,6 +38,9 @@ from multiprocessing.queues import Queue
 from pathlib import Path
 from types import FrameType, TracebackType
 from typing import Any, Final, NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
 
 from hilrig.errors import HilrigError, RecordingError
 from hilrig.recording import (
@@ -60,6 +68,9 @@ RING_ROWS = 2048  # per ring: 2 s at 1 kHz
 EVENT_SLOTS = 1024
 POLL_S = 0.005
 IDLE_FLUSH_S = 0.25  # hand a quiet writer's open chunk to the OS after this long without data
+VIEW_RATE_HZ = 50.0  # the live view's copy: plenty for a display; the file keeps every row
+VIEW_BATCH_S = 0.1  # the copy leaves in batches this far apart
+VIEW_HANDOFF_S = 1.0  # at the end, the longest the last batch may take to leave the recorder
 _STOP = None  # the last item stop() puts on the event queue
 
 
@@ -170,6 +181,8 @@ class _Job:
     calibration: Mapping[str, object] | None
     split: SplitPolicy | None
     poll_s: float
+    view: Queue[ViewBatch | None] | None
+    view_rate_hz: float
 
 
 class RecorderProcess:
@@ -178,6 +191,8 @@ class RecorderProcess:
     ``session``, ``urdf``, ``attachments``, ``calibration`` and ``split`` go to the
     :class:`~hilrig.recording.SessionWriter`; ``controller`` and ``axis_names`` (the tick rows'
     axis order) label ``/controller/state``. The rings are read every ``poll_s`` seconds.
+    ``view`` is the live view's queue: a copy decimated to ``view_rate_hz`` goes there
+    (:class:`ViewForwarder`); :attr:`view_counts` says how that went once stopped.
     """
 
     def __init__(
@@ -193,6 +208,8 @@ class RecorderProcess:
         axis_names: tuple[str, ...] = AXIS_NAMES,
         split: SplitPolicy | None = None,
         poll_s: float = POLL_S,
+        view: Queue[ViewBatch | None] | None = None,
+        view_rate_hz: float = VIEW_RATE_HZ,
     ) -> None:
         self.path = Path(path)
         self._feed = feed
@@ -210,10 +227,13 @@ class RecorderProcess:
             calibration=calibration,
             split=split,
             poll_s=poll_s,
+            view=view,
+            view_rate_hz=view_rate_hz,
         )
         self._process: BaseProcess | None = None
         self._report: Connection | None = None
         self._summary: RecorderSummary | None = None
+        self.view_counts: ViewCounts | None = None  # set by stop() when there is a view
 
     @property
     def pid(self) -> int | None:
@@ -267,7 +287,8 @@ class RecorderProcess:
             raise RecordingError(
                 f"recorder of {self.path}: not finished within {timeout_s} s; killed it"
             )
-        self._summary = RecorderSummary(self._receive("done"), self._feed.drops)
+        messages, self.view_counts = self._receive("done")
+        self._summary = RecorderSummary(messages, self._feed.drops)
         return self._summary
 
     def kill(self) -> None:
@@ -368,6 +389,135 @@ def tick_samples(rows: Rows) -> Messages:
         yield LOOP_TOPIC, LoopTiming(t, *timing)
 
 
+# -- the live view's copy -----------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ViewBatch:
+    """A decimated copy of rows the recorder received (wrist F/T, joint state and tick rows, in
+    the dtypes of :mod:`.records`) and every event, for the live view. ``t0_ns`` is the
+    session's first control tick: the view's time zero."""
+
+    t0_ns: int
+    ft: Rows
+    joints: Rows
+    ticks: Rows
+    events: tuple[EventRecord, ...]
+
+
+class ViewCounts(NamedTuple):
+    """What the recorder did for a live view: batches ``sent`` and ``dropped`` (the queue was
+    full), and ``error``, why forwarding stopped ("" if it never did)."""
+
+    sent: int = 0
+    dropped: int = 0
+    error: str = ""
+
+
+def first_per_period(
+    t_ns: NDArray[np.int64], period_ns: int, previous: int = -1
+) -> tuple[NDArray[np.intp], int]:
+    """Indices of the rows of ascending ``t_ns`` that are the first of their period
+    (``t_ns // period_ns``), ``previous`` being the period of the row seen before them (-1:
+    none); and the period of the last row, to pass on with the next rows."""
+    period = t_ns // period_ns
+    keep = np.flatnonzero(np.diff(period, prepend=previous) != 0)
+    return keep, int(period[-1]) if len(period) else previous
+
+
+_VIEW_STREAMS = {"ft": FT_DTYPE, "joints": JOINT_DTYPE, "ticks": TICK_DTYPE}
+
+
+class ViewForwarder:
+    """The recorder's copy for the live view: per stream, the first row of every
+    ``1 / rate_hz`` s, and every event, put on ``queue`` as a :class:`ViewBatch` every
+    ``batch_s`` from the first tick on. Nothing here waits: a full queue drops the batch
+    (counted), and the first failure stops forwarding (kept in ``error``), never the recording.
+    """
+
+    def __init__(self, queue: Queue[ViewBatch | None], *, rate_hz: float, batch_s: float) -> None:
+        self.queue = queue
+        self.period_ns = round(1e9 / rate_hz)
+        self.batch_ns = round(batch_s * 1e9)
+        self.rows: dict[str, list[Rows]] = {stream: [] for stream in _VIEW_STREAMS}
+        self.last_period = dict.fromkeys(_VIEW_STREAMS, -1)
+        self.events: list[EventRecord] = []
+        self.t0_ns: int | None = None
+        self.due_ns = 0
+        self.sent = self.dropped = 0
+        self.error = ""
+
+    def rows_read(self, stream: str, rows: Rows) -> None:
+        """Keep the rows of ``stream`` ("ft", "joints" or "ticks") due for the view."""
+        if self.error or len(rows) == 0:
+            return
+        try:
+            t_ns = rows["t_ns"]
+            keep, self.last_period[stream] = first_per_period(
+                t_ns, self.period_ns, self.last_period[stream]
+            )
+            self.rows[stream].append(rows[keep])
+            if stream == "ticks" and self.t0_ns is None:
+                self.t0_ns = int(t_ns[0])
+        except Exception as err:  # the view must never cost the recording
+            self._fail(err)
+
+    def event(self, record: EventRecord) -> None:
+        if not self.error:
+            self.events.append(record)
+
+    def send_due(self, now_ns: int) -> None:
+        """Send what was kept if ``batch_s`` has passed since the last batch."""
+        if now_ns >= self.due_ns:
+            self.due_ns = now_ns + self.batch_ns
+            self._send()
+
+    def finish(self, timeout_s: float) -> ViewCounts:
+        """Send what is left and the end marker, and give the queue up to ``timeout_s`` to hand
+        them over: a viewer feed that stopped reading cannot keep the recorder from exiting."""
+        self._send()
+        try:
+            with contextlib.suppress(queue.Full):  # then the feed's parent ends it
+                self.queue.put_nowait(None)
+            self.queue.close()
+            handover = threading.Thread(target=self.queue.join_thread, daemon=True)
+            handover.start()
+            handover.join(timeout_s)
+            if handover.is_alive():
+                self.queue.cancel_join_thread()
+        except Exception as err:  # the view must never cost the recording
+            self.error = self.error or f"{type(err).__name__}: {err}"
+        return ViewCounts(self.sent, self.dropped, self.error)
+
+    def _send(self) -> None:
+        if self.error or self.t0_ns is None:  # times count from the first tick
+            return
+        try:
+            ft, joints, ticks = (_joined(self.rows[s], dtype) for s, dtype in _VIEW_STREAMS.items())
+            batch = ViewBatch(self.t0_ns, ft, joints, ticks, tuple(self.events))
+            for kept in self.rows.values():
+                kept.clear()
+            self.events.clear()
+            if not (len(ft) or len(joints) or len(ticks) or batch.events):
+                return
+            self.queue.put_nowait(batch)  # pickled by the queue's thread, not here
+            self.sent += 1
+        except queue.Full:
+            self.dropped += 1
+        except Exception as err:  # the view must never cost the recording
+            self._fail(err)
+
+    def _fail(self, err: Exception) -> None:
+        self.error = f"{type(err).__name__}: {err}"
+        for kept in self.rows.values():
+            kept.clear()
+        self.events.clear()
+
+
+def _joined(parts: list[Rows], dtype: np.dtype[Any]) -> Rows:
+    return np.concatenate(parts) if parts else np.empty(0, dtype=dtype)
+
+
 # -- the recorder process -----------------------------------------------------------------------
 
 
@@ -401,9 +551,12 @@ def _record(job: _Job, report: Connection) -> None:
         _send(report, "error", str(err))
         return
     finally:
-        writer.close()
-        _release(rings)
-    _send(report, "done", messages)
+        try:
+            writer.close()
+            _release(rings)
+        finally:  # the file is closed: now the live view's last batch may take its time
+            views = None if recorder.view is None else recorder.view.finish(VIEW_HANDOFF_S)
+    _send(report, "done", (messages, views))
 
 
 def _send(report: Connection, kind: str, value: object) -> None:
@@ -419,6 +572,9 @@ class _Recorder:
         self.job, self.writer = job, writer
         self.ft, self.joint, self.tick = rings
         self.terminated = False
+        self.view = None
+        if job.view is not None:
+            self.view = ViewForwarder(job.view, rate_hz=job.view_rate_hz, batch_s=VIEW_BATCH_S)
 
     def on_sigterm(self, signum: int, frame: FrameType | None) -> None:
         """SIGTERM (also multiprocessing's at the parent's exit) finishes the file cleanly."""
@@ -435,15 +591,20 @@ class _Recorder:
             finishing = self.terminated or os.getppid() != self.job.parent_pid
             written, stopping = self.drain_events()
             # Rows are read after the events: all rows committed before stop() are in the rings.
-            for messages_of, ring in (
-                (ft_samples, self.ft),
-                (joint_samples, self.joint),
-                (tick_samples, self.tick),
+            for messages_of, ring, stream in (
+                (ft_samples, self.ft, "ft"),
+                (joint_samples, self.joint, "joints"),
+                (tick_samples, self.tick, "ticks"),
             ):
-                for topic, sample in messages_of(ring.read_available()):
+                rows = ring.read_available()
+                for topic, sample in messages_of(rows):
                     self.writer.write(topic, sample)
                     written += 1
+                if self.view is not None:
+                    self.view.rows_read(stream, rows)
             messages += written
+            if self.view is not None:
+                self.view.send_due(time.monotonic_ns())
             now = time.monotonic()
             if written:
                 last_data, dirty = now, True
@@ -463,6 +624,8 @@ class _Recorder:
             while item is not _STOP:
                 self.writer.write(EVENTS_TOPIC, item)
                 written += 1
+                if self.view is not None:
+                    self.view.event(item)
                 item = events.get_nowait()
         except queue.Empty:
             return written, False
