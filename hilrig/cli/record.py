@@ -20,6 +20,8 @@ from hilrig.errors import HilrigError
 from hilrig.recording.samples import EventRecord
 from hilrig.rig.loop import ControlLoop, LoopConfig
 from hilrig.rig.session import SessionConfig, SessionResult, record_session
+from hilrig.viz.live import check_sink
+from hilrig.viz.sinks import Sink, SinkKind
 
 
 def read_config(path: Path) -> dict[str, Any]:
@@ -60,6 +62,27 @@ def status_line(loop: ControlLoop, started: float) -> Text:
     return Text(line)
 
 
+def view_sink(view: bool, view_url: str | None, view_save: Path | None) -> Sink | None:
+    """The live view's one destination (None: no live view), checked; raises HilrigError."""
+    chosen = [
+        n
+        for n, on in (("--view", view), ("--view-url", view_url), ("--view-save", view_save))
+        if on
+    ]
+    if len(chosen) > 1:
+        raise HilrigError(f"{' and '.join(chosen)}: choose one live view destination")
+    if view_url is not None:
+        sink = Sink(SinkKind.CONNECT, url=view_url)
+    elif view_save is not None:
+        sink = Sink(SinkKind.SAVE, path=view_save)
+    elif view:
+        sink = Sink(SinkKind.SPAWN)
+    else:
+        return None
+    check_sink(sink)
+    return sink
+
+
 def print_result(console: Console, result: SessionResult) -> None:
     summary = result.summary
     late = summary.lateness.summary_us()
@@ -78,6 +101,10 @@ def print_result(console: Console, result: SessionResult) -> None:
         f"{len(result.events)} events, {summary.hold_ticks} hold ticks",
         highlight=False,
     )
+    if result.view is not None:
+        view = result.view
+        line = f"  live view: {view.shown} batches shown, {view.sent} sent, {view.dropped} dropped"
+        console.print(line + (f"; {view.problem}" if view.problem else ""), highlight=False)
 
 
 @app.command()
@@ -109,11 +136,30 @@ def record(
     duration: Annotated[float, typer.Option(help="Seconds; Ctrl-C ends earlier, cleanly.")] = 20.0,
     rate: Annotated[float, typer.Option(help="Loop rate, Hz (the paper used 500).")] = 1000.0,
     out: Annotated[Path | None, typer.Option(help="The MCAP file to write.")] = None,
+    view: Annotated[
+        bool,
+        typer.Option(
+            "--view",
+            help="Show the session live in the Rerun desktop viewer, decimated to 50 Hz for "
+            "display (the file keeps every sample).",
+        ),
+    ] = False,
+    view_url: Annotated[
+        str | None,
+        typer.Option(
+            help="Stream the live view to a running viewer or server instead, e.g. "
+            "rerun+http://127.0.0.1:9876/proxy."
+        ),
+    ] = None,
+    view_save: Annotated[
+        Path | None, typer.Option(help="Write the live view to this .rrd file instead.")
+    ] = None,
 ) -> None:
     """Run the admittance controller in the loop with the rig and record every stream."""
     console = Console(soft_wrap=True)
     if rig == "aubo" and config is None:
         raise HilrigError("--rig aubo needs --config with the rig's endpoints")
+    sink = view_sink(view, view_url, view_save)
     settings = read_config(config) if config is not None else {}
     trajectory_options = dict(settings.get("trajectory", {}))
     trajectory = str(trajectory_options.pop("name", trajectory))
@@ -135,6 +181,7 @@ def record(
         loop=LoopConfig(
             rate_hz=rate, law=controller, cartesian_params=params, joint_params=joint_params
         ),
+        view=sink,
     )
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):

@@ -2,8 +2,9 @@
 
 ``record_session`` starts the emulated rig in its own process (or uses the endpoints of a real
 AUBO rig), connects the three drivers, tares the wrist sensor at the start pose (the tool's
-gravity accounted for), starts the recorder process and runs the loop until the duration has
-passed or ``stop`` is set (Ctrl-C, SIGTERM). Whatever happens, the robot is left holding and the
+gravity accounted for), starts the recorder process (and, with ``view``, the live view's
+viewer-feed process, :mod:`hilrig.viz.live`) and runs the loop until the duration has passed or
+``stop`` is set (Ctrl-C, SIGTERM). Whatever happens, the robot is left holding and the
 recording is closed cleanly: the ExitStack unwinds in reverse order.
 """
 
@@ -37,6 +38,8 @@ from hilrig.rig.safety import SafetyClamp, SafetyConfig
 from hilrig.rig.trajectory import make_trajectory
 from hilrig.rig.virtual import VirtualInput
 from hilrig.robot import RobotModel
+from hilrig.viz.live import LiveReport, LiveView, check_sink
+from hilrig.viz.sinks import Sink
 
 EMULATED_TOOL = ToolLoad(mass_kg=0.5, com_in_sensor_m=(0.0, 0.0, 0.05))
 
@@ -46,6 +49,7 @@ class SessionConfig:
     """One session: who (pseudonym), what (scenario, trajectory, controller), how long, where.
 
     ``rig`` is "emulated" (started here) or "aubo" with ``endpoints`` of the real devices.
+    ``view``: where the live view goes (None: no live view).
     """
 
     out: Path
@@ -62,6 +66,7 @@ class SessionConfig:
     session_id: str = ""
     virtual: VirtualInput | None = None  # a recorded trace played as a virtual collision
     virtual_source: str = ""  # where that trace came from (file, start, duration)
+    view: Sink | None = None
 
     def as_json(self) -> str:
         """The configuration as JSON, attached to the recording (the virtual trace summarised;
@@ -91,7 +96,8 @@ class SessionConfig:
 
 @dataclass
 class SessionResult:
-    """What a session produced: the file, the loop's summary and the recorder's counts."""
+    """What a session produced: the file, the loop's summary, the recorder's counts and how the
+    live view went (None without one)."""
 
     path: Path
     summary: LoopSummary
@@ -99,6 +105,7 @@ class SessionResult:
     drops: int
     events: list[EventRecord]
     recorder_error: str = ""  # why the file may be truncated ("" when it closed cleanly)
+    view: LiveReport | None = None
 
 
 def record_session(
@@ -120,6 +127,8 @@ def record_session(
     if config.rig not in ("emulated", "aubo"):
         raise HilrigError(f"rig {config.rig!r} is not one of: emulated, aubo")
     make_scenario(config.scenario)  # an unknown scenario fails before anything starts
+    if config.view is not None:
+        check_sink(config.view)
     stop = stop or threading.Event()
     events: list[EventRecord] = []
 
@@ -128,7 +137,21 @@ def record_session(
         if on_event is not None:
             on_event(record)
 
+    session_id = config.session_id or time.strftime("%Y%m%d-%H%M%S")
+    model = RobotModel()
     with ExitStack() as stack:
+        live = None
+        if config.view is not None:  # first: its start-up must not delay the rig's scenario
+            live = LiveView(
+                config.view,
+                session_id=session_id,
+                controller=config.loop.law,
+                source=str(config.out),
+                loop_rate_hz=config.loop.rate_hz,
+                urdf=model.urdf_xml,
+            )
+            stack.callback(live.close)
+            live.start()
         if config.rig == "emulated":
             rig = RigProcess(config.scenario)
             endpoints = rig.start()
@@ -149,7 +172,6 @@ def record_session(
         targets.connect()
         stack.callback(targets.close)
 
-        model = RobotModel()
         latest = robot.latest()
         assert latest is not None  # connect() waited for the first frame
         q0 = np.asarray(latest.state.q_rad)
@@ -157,7 +179,7 @@ def record_session(
         compensator = GravityCompensator(config.tool)
         compensator.tare(sensor.average(config.tare_s), start_pose[:3, :3])
         info = SessionInfo.starting_now(
-            session_id=config.session_id or time.strftime("%Y%m%d-%H%M%S"),
+            session_id=session_id,
             subject_id=config.subject_id,
             rig=config.rig,
             controller=config.loop.law,
@@ -178,6 +200,7 @@ def record_session(
             },
             controller=config.loop.law,
             axis_names=AXIS_NAMES,
+            view=None if live is None else live.queue,
         )
         recorder.start()
         if recorder_ready is not None:
@@ -199,6 +222,7 @@ def record_session(
             on_start(loop)
         recorder_error = ""
         messages: int | None = None
+        view = None
         try:
             summary = loop.run(config.duration_s, stop)
         finally:
@@ -207,4 +231,6 @@ def record_session(
             except RecordingError as err:  # the recorder died: the file ends where it did
                 recorder_error = f"{err}; `hilrig recover {config.out} -o OUT` restores it"
                 drops = feed.drops
-    return SessionResult(config.out, summary, messages, drops, events, recorder_error)
+            if live is not None:  # after the recorder: its last batch is queued by now
+                view = live.stop(recorder.view_counts)
+    return SessionResult(config.out, summary, messages, drops, events, recorder_error, view)

@@ -1,5 +1,7 @@
-"""``hilrig record`` as a lab runs it: a subprocess, a config file, stopped by SIGTERM."""
+"""``hilrig record`` as a lab runs it: a subprocess, a config file, stopped by SIGTERM; its live
+view options."""
 
+import re
 import signal
 import subprocess
 import sys
@@ -7,6 +9,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
+from rerun.chunk import RrdReader
 
 from hilrig.recording import inspect, load
 
@@ -53,3 +57,45 @@ def test_sigterm_finishes_the_file_and_waypoints_come_from_the_config(tmp_path: 
     position = desired[["pose.position.x", "pose.position.y"]].to_numpy()
     moved = position[-1] - position[0]
     np.testing.assert_allclose(moved, [0.02, 0.02], atol=1e-3)  # reached the second waypoint
+
+
+def test_view_save_writes_the_live_view_beside_a_complete_recording(tmp_path: Path) -> None:
+    out, live = tmp_path / "session.mcap", tmp_path / "live.rrd"
+    command = ["record", "--subject", "S003", "--duration", "2", "--out", str(out)]
+    result = subprocess.run(
+        [str(HILRIG), *command, "--view-save", str(live)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 0, result.stderr
+    assert re.search(r"live view: (\d+) batches shown, \1 sent, 0 dropped$", result.stdout, re.M)
+    assert inspect(out).complete
+    entities = {c.entity_path for c in RrdReader(live).stream().to_chunks() if not c.is_static}
+    assert {"/series/input/x", "/world/robot/links", "/events"} <= entities
+
+
+@pytest.mark.parametrize(
+    ("option", "message"),
+    [
+        (
+            ["--view-url", "http://127.0.0.1:9876"],
+            "live view URL 'http://127.0.0.1:9876': expected",
+        ),
+        (["--view-save", "/no/such/dir/live.rrd"], "directory /no/such/dir does not exist"),
+        (["--view", "--view-save", "live.rrd"], "--view and --view-save: choose one"),
+    ],
+)
+def test_a_bad_live_view_option_is_one_line_before_anything_starts(
+    tmp_path: Path, option: list[str], message: str
+) -> None:
+    out = tmp_path / "session.mcap"
+    result = subprocess.run(
+        [str(HILRIG), "record", "--subject", "S003", "--out", str(out), *option],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and message in result.stderr
+    assert not out.exists()
