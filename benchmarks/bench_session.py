@@ -12,11 +12,9 @@ from it acknowledged), p50/p99; with the view, its batches sent, dropped and sho
 
 from __future__ import annotations
 
-import os
 import signal
 import socket
 import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -27,10 +25,9 @@ from pathlib import Path
 
 from benchmarks.harness import Result
 from hilrig.rig.session import SessionConfig, SessionResult, record_session
-from hilrig.viz.sinks import Sink, SinkKind, grpc_url
+from hilrig.viz.sinks import Sink, SinkKind, grpc_url, rerun_binary
 
 DURATION_S = 30.0
-RERUN = str(Path(sys.executable).parent / "rerun")
 
 
 def run() -> list[Result]:
@@ -58,10 +55,9 @@ def _rerun_server(saved: Path) -> Iterator[str]:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     server = subprocess.Popen(
-        [RERUN, "--save", str(saved), "--port", str(port), "--bind", "127.0.0.1"],
+        [str(rerun_binary()), "--save", str(saved), "--port", str(port), "--bind", "127.0.0.1"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
-        start_new_session=True,  # one group: the rerun wrapper script and the server
     )
     try:
         deadline = time.monotonic() + 30
@@ -71,7 +67,7 @@ def _rerun_server(saved: Path) -> Iterator[str]:
             time.sleep(0.05)
         yield grpc_url(port)
     finally:
-        os.killpg(server.pid, signal.SIGINT)
+        server.send_signal(signal.SIGINT)  # it stops saving and exits
         server.wait(30)
 
 

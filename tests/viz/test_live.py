@@ -1,15 +1,14 @@
 """The live view of ``hilrig record --view``: the recorder's decimated copy, its batches in Rerun
-(read back from the ``.rrd`` with Rerun's own reader), and sessions streaming to a real Rerun
-gRPC server, to a viewer that is not there, and nowhere, with the recording unaffected."""
+(read back from the ``.rrd`` with Rerun's own reader), a recorder whose view nobody reads, and
+sessions streaming to a real Rerun gRPC server or to a viewer that is not there, each with its
+recording complete."""
 
 from __future__ import annotations
 
 import multiprocessing
-import os
 import signal
 import socket
 import subprocess
-import sys
 import threading
 import time
 import warnings
@@ -39,9 +38,8 @@ from hilrig.viz import paths
 from hilrig.viz.live import LiveView, check_sink, event_line
 from hilrig.viz.log import FORCE_SCALE_M_PER_N
 from hilrig.viz.scene import RECORDED
-from hilrig.viz.sinks import Sink, SinkKind, grpc_url
+from hilrig.viz.sinks import Sink, SinkKind, grpc_url, rerun_binary
 
-RERUN = str(Path(sys.executable).parent / "rerun")
 T0_NS = 1_000_000_000_000  # a multiple of 20 ms: every 20th row starts a period
 TICK_NS = 1_000_000
 TICKS = 1000  # 1 s at 1 kHz: 50 rows at 50 Hz
@@ -359,17 +357,16 @@ def streamed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Session
     tmp = tmp_path_factory.mktemp("streamed")
     saved, port = tmp / "server.rrd", free_port()
     server = subprocess.Popen(
-        [RERUN, "--save", str(saved), "--port", str(port), "--bind", "127.0.0.1"],
+        [str(rerun_binary()), "--save", str(saved), "--port", str(port), "--bind", "127.0.0.1"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
-        start_new_session=True,  # its group: the wrapper script and the server
     )
     try:
         wait_listening(port)
         result = session(tmp / "session.mcap", 3.0, Sink(SinkKind.CONNECT, url=grpc_url(port)))
         wait_settled(saved)
     finally:
-        os.killpg(server.pid, signal.SIGINT)
+        server.send_signal(signal.SIGINT)  # it stops saving and exits
         server.wait(30)
     yield result, saved
 
