@@ -174,41 +174,40 @@ class LiveLogger:
 
     def log(self, batch: ViewBatch) -> None:
         """Send ``batch`` (times: s from its ``t0_ns``)."""
-        t0_ns = batch.t0_ns
-        self._ticks(_seconds(batch.ticks, t0_ns), batch.ticks, batch.joints)
+        t0_ns, rec = batch.t0_ns, self.rec
+        if len(batch.ticks):
+            t_ticks = _seconds(batch.ticks, t0_ns)
+            self._controller(t_ticks, batch.ticks)
+            self._space(t_ticks, batch.ticks, batch.joints)
+        t_ft = _seconds(batch.ft, t0_ns)
         for c, channel in enumerate(paths.WRIST_CHANNELS):
-            send_scalars(
-                self.rec,
-                paths.wrist_series(channel),
-                _seconds(batch.ft, t0_ns),
-                _col(batch.ft, "wrench", c),
-            )
+            send_scalars(rec, paths.wrist_series(channel), t_ft, _col(batch.ft, "wrench", c))
         t_joints = _seconds(batch.joints, t0_ns)
         for j in range(6):
-            send_scalars(
-                self.rec, paths.joint_series(f"joint{j + 1}"), t_joints, _col(batch.joints, "q", j)
-            )
+            q_rad = _col(batch.joints, "q", j)
+            send_scalars(rec, paths.joint_series(f"joint{j + 1}"), t_joints, q_rad)
         if len(batch.joints):
             self.q_rad = np.array(batch.joints["q"][-1], dtype=np.float64)
         lines = [event_line(e) for e in batch.events]
         t_events = np.array([(e.t_ns - t0_ns) / 1e9 for e in batch.events], dtype=np.float64)
-        send_events(self.rec, t_events, [text for text, _ in lines], [lvl for _, lvl in lines])
+        send_events(rec, t_events, [text for text, _ in lines], [lvl for _, lvl in lines])
         self.batches += 1
 
-    def _ticks(self, t_s: FloatArray, ticks: Rows, joints: Rows) -> None:
-        if len(ticks) == 0:
-            return
-        rec = self.rec
+    def _controller(self, t_s: FloatArray, ticks: Rows) -> None:
+        """Per axis the input and the controller's quantities; the contact lanes."""
         for i, axis in enumerate(AXIS_NAMES):
-            send_scalars(rec, paths.input_series(axis), t_s, _col(ticks, "force", i))
+            send_scalars(self.rec, paths.input_series(axis), t_s, _col(ticks, "force", i))
             for quantity in paths.QUANTITIES:  # TICK_DTYPE's own field names
-                send_scalars(
-                    rec, paths.run_series(quantity, axis, RECORDED), t_s, _col(ticks, quantity, i)
-                )
+                path = paths.run_series(quantity, axis, RECORDED)
+                send_scalars(self.rec, path, t_s, _col(ticks, quantity, i))
         for group, column in self.groups.items():
             codes = np.ascontiguousarray(ticks["contact"][:, column])
             lane = paths.contact_lane(group, RECORDED)
-            self.contact[group] = send_contact(rec, lane, t_s, codes, self.contact[group])
+            self.contact[group] = send_contact(self.rec, lane, t_s, codes, self.contact[group])
+
+    def _space(self, t_s: FloatArray, ticks: Rows, joints: Rows) -> None:
+        """Where X_d and X_d + e are; the robot, its TCP and the force arrow there (m, N)."""
+        rec = self.rec
         desired = np.asarray(ticks["desired_position"], dtype=np.float64)
         send_marker(rec, f"{paths.trajectory(paths.DESIRED)}/now", t_s, desired)
         reference = desired + ticks["offset"][:, :3]
