@@ -13,7 +13,6 @@ goes on recording everything.
 from __future__ import annotations
 
 import contextlib
-import math
 import multiprocessing
 import os
 import queue
@@ -34,8 +33,7 @@ import rerun as rr
 from numpy.typing import NDArray
 
 from hilrig.errors import ViewError
-from hilrig.recording.samples import EventKind, EventRecord
-from hilrig.replay.specs import GROUP_AXES
+from hilrig.recording.samples import EventRecord
 from hilrig.rig.recorder import START_METHOD, VIEW_RATE_HZ, ViewBatch, ViewCounts
 from hilrig.rig.records import AXIS_NAMES
 from hilrig.rig.rings import Rows
@@ -54,7 +52,8 @@ from hilrig.viz.log import (
     send_robot,
     send_scalars,
 )
-from hilrig.viz.scene import GROUP_LABELS, RECORDED
+from hilrig.viz.scene import RECORDED, group_columns
+from hilrig.viz.scene import event_line as scene_event_line
 from hilrig.viz.sinks import Sink, SinkKind, open_stream
 
 FloatArray = NDArray[np.float64]
@@ -69,13 +68,6 @@ CONNECT_TIMEOUT_S = 2.0
 NICENESS = 10
 URL_SCHEMES = {"rerun": 443, "rerun+http": 80, "rerun+https": 443}  # and their default ports
 RRD_SUFFIX = ".rrd"
-_EVENT_LEVELS = {
-    EventKind.COLLISION_START: "WARN",
-    EventKind.COLLISION_END: "INFO",
-    EventKind.RECOVERED: "INFO",
-    EventKind.FAULT: "ERROR",
-    EventKind.OPERATOR_MARK: "INFO",
-}
 
 
 @dataclass(frozen=True)
@@ -154,7 +146,7 @@ def about_live(*, session_id: str, controller: str, source: str, rate_hz: float)
 
 def _groups() -> dict[str, int]:
     """``{group label: the column whose contact state the group shares}``."""
-    return {GROUP_LABELS[g]: AXIS_NAMES.index(axes[0]) for g, axes in GROUP_AXES.items()}
+    return {label: cols[0] for label, cols in group_columns(AXIS_NAMES).items()}
 
 
 class LiveLogger:
@@ -243,16 +235,7 @@ def _col(rows: Rows, field: str, column: int) -> FloatArray:
 
 def event_line(record: EventRecord) -> tuple[str, str]:
     """An event's line of text (as in a file's view) and its Rerun text-log level."""
-    try:
-        kind = EventKind(record.kind)
-        name, level = kind.name.lower().replace("_", " "), _EVENT_LEVELS[kind]
-    except ValueError:
-        name, level = f"event {record.kind}", "INFO"
-    words = [w for w in (record.axis, record.detail) if w]
-    text = f"{name}: {', '.join(words)}" if words else name
-    if not math.isnan(record.value):
-        text += f" ({record.value:g})"
-    return f"[{record.source}] {text}", level
+    return scene_event_line(record.kind, record.source, record.detail, record.axis, record.value)
 
 
 def open_live(

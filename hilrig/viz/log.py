@@ -53,7 +53,9 @@ def run_styles(runs: Sequence[RunCurves]) -> tuple[RunStyle, ...]:
 
 
 def _time(t_s: FloatArray) -> list[rr.TimeColumn]:
-    return [rr.TimeColumn(paths.TIMELINE, duration=t_s)]
+    """The ``time`` column of ``t_s`` (s), rounded to the nanosecond (Rerun truncates s)."""
+    duration = np.rint(np.asarray(t_s) * 1e9).astype("timedelta64[ns]")
+    return [rr.TimeColumn(paths.TIMELINE, duration=duration)]
 
 
 def send_scalars(rec: rr.RecordingStream, path: str, t_s: FloatArray, values: FloatArray) -> None:

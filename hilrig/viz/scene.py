@@ -114,12 +114,7 @@ class Scene:
     @property
     def groups(self) -> dict[str, tuple[int, ...]]:
         """``{group label: column indices}`` of the axis groups present."""
-        out: dict[str, tuple[int, ...]] = {}
-        for group, axes in GROUP_AXES.items():
-            cols = tuple(self.axis_names.index(a) for a in axes if a in self.axis_names)
-            if cols:
-                out[GROUP_LABELS[group]] = cols
-        return out
+        return group_columns(self.axis_names)
 
     @property
     def duration_s(self) -> float:
@@ -283,27 +278,45 @@ def _wrist(frames: dict[str, pd.DataFrame], t0_ns: int) -> Series | None:
 def _events(frame: pd.DataFrame | None, t0_ns: int) -> Events:
     if frame is None or len(frame) == 0:
         return Events(np.empty(0), (), ())
-    texts, levels = [], []
-    for kind, source, detail, axis, value in zip(
-        frame["kind"].to_numpy(),
-        frame["source"].astype(str),
-        frame["detail"].astype(str),
-        frame["axis"].astype(str),
-        frame["value"].to_numpy(dtype=np.float64),
-        strict=True,
-    ):
-        try:
-            code = EventKind(int(kind))
-            name, level = code.name.lower().replace("_", " "), _EVENT_LEVELS[code]
-        except ValueError:
-            name, level = f"event {kind}", "INFO"
-        words = [name, *(w for w in (axis, detail) if w and w != "nan")]
-        text = ": ".join([words[0], ", ".join(words[1:])]) if len(words) > 1 else name
-        if not math.isnan(value):
-            text += f" ({value:g})"
-        texts.append(f"[{source}] {text}")
-        levels.append(level)
-    return Events(_seconds(frame, t0_ns), tuple(texts), tuple(levels))
+    lines = [
+        event_line(int(kind), source, detail, axis, value)
+        for kind, source, detail, axis, value in zip(
+            frame["kind"].to_numpy(),
+            frame["source"].astype(str),
+            frame["detail"].astype(str),
+            frame["axis"].astype(str),
+            frame["value"].to_numpy(dtype=np.float64),
+            strict=True,
+        )
+    ]
+    return Events(
+        _seconds(frame, t0_ns), tuple(t for t, _ in lines), tuple(level for _, level in lines)
+    )
+
+
+def event_line(kind: int, source: str, detail: str, axis: str, value: float) -> tuple[str, str]:
+    """An event's line in the viewer's log (``[source] kind: axis, detail (value)``) and its
+    Rerun text-log level."""
+    try:
+        code = EventKind(kind)
+        name, level = code.name.lower().replace("_", " "), _EVENT_LEVELS[code]
+    except ValueError:
+        name, level = f"event {kind}", "INFO"
+    words = [w for w in (axis, detail) if w and w != "nan"]
+    text = f"{name}: {', '.join(words)}" if words else name
+    if not math.isnan(value):
+        text += f" ({value:g})"
+    return f"[{source}] {text}", level
+
+
+def group_columns(axis_names: Sequence[str]) -> dict[str, tuple[int, ...]]:
+    """``{group label: column indices}`` of the axis groups present in ``axis_names``."""
+    out: dict[str, tuple[int, ...]] = {}
+    for group, axes in GROUP_AXES.items():
+        cols = tuple(axis_names.index(a) for a in axes if a in axis_names)
+        if cols:
+            out[GROUP_LABELS[group]] = cols
+    return out
 
 
 def _urdf(frame: pd.DataFrame | None) -> str | None:

@@ -117,7 +117,7 @@ def spawn_viewer(port: int, timeout_s: float = 20.0) -> None:
                 words = [line.strip() for line in log.read().splitlines() if line.strip()]
                 raise ViewError(
                     f"the Rerun viewer did not start ({words[-1] if words else 'no output'});"
-                    " without a display use --save, --web or --connect"
+                    " without a display, save to a file or use the web viewer or a viewer's URL"
                 )
             time.sleep(0.05)
 

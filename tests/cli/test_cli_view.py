@@ -218,4 +218,6 @@ def test_without_a_display_the_desktop_viewer_fails_in_one_line(tmp_path: Path) 
     assert result.returncode == 2
     assert len(result.stderr.splitlines()) == 1
     assert result.stderr.startswith("error: the Rerun viewer did not start (")
-    assert result.stderr.endswith("); without a display use --save, --web or --connect\n")
+    assert result.stderr.endswith(
+        "); without a display, save to a file or use the web viewer or a viewer's URL\n"
+    )
