@@ -28,10 +28,7 @@ from hilrig.viz import (
     scene_from_session,
     show_scene,
 )
-from hilrig.viz.sinks import GRPC_PORT, WEB_PORT
-
-RRD_SUFFIX = ".rrd"
-URL_SCHEMES = ("rerun://", "rerun+http://", "rerun+https://")
+from hilrig.viz.sinks import GRPC_PORT, WEB_PORT, check_rrd_path, grpc_address
 
 
 @app.command("view")
@@ -128,16 +125,9 @@ def _sink(save: Path | None, web: bool, connect: str | None, port: int, web_port
     if len(chosen) > 1:
         raise ViewError(f"{' and '.join(chosen)}: choose one destination")
     if save is not None:
-        if save.suffix.lower() != RRD_SUFFIX:
-            raise ViewError(f"--save {save}: the file must end in {RRD_SUFFIX}")
-        if not save.parent.is_dir():
-            raise ViewError(f"--save {save}: directory {save.parent} does not exist")
-        return Sink(SinkKind.SAVE, path=save)
+        return Sink(SinkKind.SAVE, path=check_rrd_path(save, "--save"))
     if connect is not None:
-        if not connect.startswith(URL_SCHEMES):
-            raise ViewError(
-                f"--connect {connect}: expected a URL starting with {', '.join(URL_SCHEMES)}"
-            )
+        grpc_address(connect, "--connect")
         return Sink(SinkKind.CONNECT, url=connect)
     if web:
         if port == web_port:

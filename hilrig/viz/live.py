@@ -26,7 +26,6 @@ from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
 from multiprocessing.queues import Queue
 from typing import Any, NoReturn
-from urllib.parse import urlsplit
 
 import numpy as np
 import rerun as rr
@@ -54,7 +53,7 @@ from hilrig.viz.log import (
 )
 from hilrig.viz.scene import RECORDED, group_columns
 from hilrig.viz.scene import event_line as scene_event_line
-from hilrig.viz.sinks import Sink, SinkKind, open_stream
+from hilrig.viz.sinks import Sink, SinkKind, check_rrd_path, grpc_address, open_stream
 
 FloatArray = NDArray[np.float64]
 
@@ -66,8 +65,6 @@ CHECK_S = 1.0  # the stream's health (a flush) is checked this often
 FLUSH_TIMEOUT_S = 5.0
 CONNECT_TIMEOUT_S = 2.0
 NICENESS = 10
-URL_SCHEMES = {"rerun": 443, "rerun+http": 80, "rerun+https": 443}  # and their default ports
-RRD_SUFFIX = ".rrd"
 
 
 @dataclass(frozen=True)
@@ -87,37 +84,14 @@ def check_sink(sink: Sink) -> None:
     writable directory (SAVE)."""
     match sink.kind:
         case SinkKind.CONNECT:
-            _address(sink.url or "")
+            grpc_address(sink.url or "", "live view URL")
         case SinkKind.SAVE:
-            path = sink.path
-            if path is None or path.suffix.lower() != RRD_SUFFIX:
-                raise ViewError(f"live view file {path}: the name must end in {RRD_SUFFIX}")
-            if path.is_dir():
-                raise ViewError(f"live view file {path}: is a directory")
-            if not path.parent.is_dir():
-                raise ViewError(f"live view file {path}: directory {path.parent} does not exist")
-            if not os.access(path.parent, os.W_OK):
-                raise ViewError(f"live view file {path}: directory {path.parent} is not writable")
+            check_rrd_path(sink.path, "live view file")
         case SinkKind.WEB:
             raise ViewError(
                 "the live view goes to the desktop viewer, a viewer's URL or an .rrd file; for a "
                 "web viewer run `rerun --serve-web` and stream to its URL"
             )
-
-
-def _address(url: str) -> tuple[str, int]:
-    """Host and port of a Rerun gRPC URL; raises ViewError if it is not one."""
-    parts = urlsplit(url)
-    try:
-        port = parts.port or URL_SCHEMES.get(parts.scheme, 0)
-    except ValueError:
-        port = 0
-    if parts.scheme not in URL_SCHEMES or not parts.hostname or parts.path != "/proxy" or not port:
-        raise ViewError(
-            f"live view URL {url!r}: expected rerun+http://HOST:PORT/proxy "
-            "(or rerun://, rerun+https://)"
-        )
-    return parts.hostname, port
 
 
 def about_live(*, session_id: str, controller: str, source: str, rate_hz: float) -> str:
@@ -462,7 +436,7 @@ def _reachable(sink: Sink) -> None:
         return
     url = sink.url or ""
     try:
-        socket.create_connection(_address(url), timeout=CONNECT_TIMEOUT_S).close()
+        socket.create_connection(grpc_address(url), timeout=CONNECT_TIMEOUT_S).close()
     except OSError as err:
         raise ViewError(f"no viewer at {url} ({err.strerror or err})") from err
 

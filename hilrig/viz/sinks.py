@@ -12,6 +12,7 @@ import time
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
+from urllib.parse import urlsplit
 
 import rerun as rr
 import rerun.blueprint as rrb
@@ -23,6 +24,8 @@ APPLICATION_ID = "hilrig"
 LOCALHOST = "127.0.0.1"
 GRPC_PORT = 9876  # Rerun's defaults
 WEB_PORT = 9090
+RRD_SUFFIX = ".rrd"
+URL_SCHEMES = {"rerun": 443, "rerun+http": 80, "rerun+https": 443}  # and their default ports
 
 
 class SinkKind(StrEnum):
@@ -41,6 +44,35 @@ class Sink:
     url: str | None = None
     port: int = GRPC_PORT
     web_port: int = WEB_PORT
+
+
+def check_rrd_path(path: Path | None, what: str) -> Path:
+    """``path`` if an ``.rrd`` file can be written there (it is overwritten); else ViewError
+    naming ``what`` (the option or role) and the path."""
+    if path is None or path.suffix.lower() != RRD_SUFFIX:
+        raise ViewError(f"{what} {path}: the name must end in {RRD_SUFFIX}")
+    if path.is_dir():
+        raise ViewError(f"{what} {path}: is a directory")
+    if not path.parent.is_dir():
+        raise ViewError(f"{what} {path}: directory {path.parent} does not exist")
+    if not os.access(path.parent, os.W_OK):
+        raise ViewError(f"{what} {path}: directory {path.parent} is not writable")
+    return path
+
+
+def grpc_address(url: str, what: str = "URL") -> tuple[str, int]:
+    """Host and port of a Rerun gRPC URL (``rerun+http://HOST:PORT/proxy``); else ViewError
+    naming ``what`` and the URL."""
+    parts = urlsplit(url)
+    try:
+        port = parts.port or URL_SCHEMES.get(parts.scheme, 0)
+    except ValueError:
+        port = 0
+    if parts.scheme not in URL_SCHEMES or not parts.hostname or parts.path != "/proxy" or not port:
+        raise ViewError(
+            f"{what} {url!r}: expected rerun+http://HOST:PORT/proxy (or rerun://, rerun+https://)"
+        )
+    return parts.hostname, port
 
 
 def grpc_url(port: int, host: str = LOCALHOST) -> str:

@@ -147,7 +147,7 @@ def test_web_serves_the_viewer_on_localhost_until_interrupted() -> None:
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--save", "x.txt"], "--save x.txt: the file must end in .rrd"),
+        (["--save", "x.txt"], "--save x.txt: the name must end in .rrd"),
         (
             ["--save", "/no/such/dir/x.rrd"],
             "--save /no/such/dir/x.rrd: directory /no/such/dir does not exist",
@@ -155,7 +155,7 @@ def test_web_serves_the_viewer_on_localhost_until_interrupted() -> None:
         (["--save", "x.rrd", "--web"], "--save and --web: choose one destination"),
         (
             ["--connect", "http://x"],
-            "--connect http://x: expected a URL starting with rerun://, rerun+http://, rerun+https://",
+            "--connect 'http://x': expected rerun+http://HOST:PORT/proxy (or rerun://, rerun+https://)",
         ),
         (
             ["--web", "--port", "9000", "--web-port", "9000"],
