@@ -26,6 +26,11 @@ class Decimation:
     samples: int
     points: int
 
+    @classmethod
+    def of(cls, samples: int, max_points: int) -> Decimation:
+        """The thinning of ``samples`` under a budget of ``max_points`` (0: none)."""
+        return cls(samples, samples if max_points == 0 else min(samples, max_points))
+
     @property
     def active(self) -> bool:
         return self.points < self.samples

@@ -239,7 +239,7 @@ def log_scene(
             send_scalars(rec, path, series.t_s[keep], column[keep])
     send_events(rec, scene.events.t_s, scene.events.text, scene.events.level)
     poses = _log_space(rec, scene, runs, max_points, max_poses, model)
-    return Logged(Decimation(len(t), min(len(t), max_points or len(t))), poses)
+    return Logged(Decimation.of(len(t), max_points), poses)
 
 
 def _log_space(

@@ -32,12 +32,6 @@ class ViewReport:
     logged: Logged
 
 
-def series_decimation(scene: Scene, max_points: int) -> Decimation:
-    """The thinning of the tick-rate series under ``max_points`` (0: none)."""
-    n = len(scene.t_s)
-    return Decimation(n, n if max_points == 0 else min(n, max_points))
-
-
 def about(scene: Scene, decimation: Decimation, max_poses: int) -> str:
     """The view's note (Markdown): source, runs and colours, timeline, decimation."""
     runs = run_styles(scene.runs)
@@ -75,7 +69,7 @@ def about(scene: Scene, decimation: Decimation, max_poses: int) -> str:
 
 def layout(scene: Scene, max_points: int = DEFAULT_MAX_POINTS) -> rrb.Blueprint:
     """The default blueprint of ``scene`` (its plot titles say if the display is decimated)."""
-    return blueprint(scene.axis_names, series_decimation(scene, max_points))
+    return blueprint(scene.axis_names, Decimation.of(len(scene.t_s), max_points))
 
 
 def show_scene(
@@ -87,7 +81,7 @@ def show_scene(
 ) -> ViewReport:
     """Send ``scene`` and its note to ``rec`` (opened with :func:`layout` as its blueprint),
     thinned for display to ``max_points`` per series and ``max_poses`` in 3D (0: all)."""
-    decimation = series_decimation(scene, max_points)
+    decimation = Decimation.of(len(scene.t_s), max_points)
     note = rr.TextDocument(about(scene, decimation, max_poses), media_type=rr.MediaType.MARKDOWN)
     rec.log(paths.ABOUT, note, static=True)
     logged = log_scene(rec, scene, max_points=max_points, max_poses=max_poses)
