@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.bench_replay import inputs
+from benchmarks.bench_replay import LAWS, RATE_HZ, inputs  # the same input and controllers
 from benchmarks.harness import Result
 from hilrig import replay as api
 from hilrig.drivers.emulated.rig import HOME_Q_RAD
@@ -40,18 +40,15 @@ from hilrig.recording import (
     default_channels,
 )
 from hilrig.rig.loop import LoopConfig
+from hilrig.rig.records import AXIS_NAMES as AXES
 from hilrig.robot import RobotModel
 from hilrig.viz import save_rrd, scene_from_session
 
 SUITE = "view"
 DURATION_S = 600
-RATE_HZ = 1000
-COLLISION_EVERY_S = 30.0
 VERSION = 1  # of the generated session: bump when the generator changes
 TARGET_S = 3.0
 REPEATS = 3
-LAWS = ("adaptive", "variable-stiffness", "fixed")
-AXES = ("x", "y", "z", "joint1", "joint2", "joint3", "joint4", "joint5", "joint6")
 
 
 def session_path() -> Path:
