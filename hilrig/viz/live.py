@@ -43,6 +43,7 @@ from hilrig.viz.decimate import Decimation
 from hilrig.viz.log import (
     FORCE_SCALE_M_PER_N,
     RunStyle,
+    latest_at,
     log_styles,
     send_contact,
     send_events,
@@ -195,8 +196,7 @@ class LiveLogger:
             q_rad = np.vstack((self.q_rad, q_rad))
         if len(t_joints) == 0:
             return None
-        rows = np.maximum(np.searchsorted(t_joints, t_ns, side="right") - 1, 0)
-        return np.ascontiguousarray(q_rad[rows])
+        return np.ascontiguousarray(latest_at(t_joints, q_rad, t_ns))
 
 
 def _seconds(rows: Rows, t0_ns: int) -> FloatArray:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import rerun as rr
@@ -218,14 +219,11 @@ def log_scene(
     log_styles(rec, scene.axis_names, runs, list(scene.groups))
     t = scene.t_s
     for i, axis in enumerate(scene.axis_names):
-        column = np.ascontiguousarray(scene.force[:, i])
-        keep = minmax_indices(column, max_points)
-        send_scalars(rec, paths.input_series(axis), t[keep], column[keep])
+        _send_thinned(rec, paths.input_series(axis), t, scene.force[:, i], max_points)
         for run in scene.runs:
             for quantity in paths.QUANTITIES:
-                values = np.ascontiguousarray(run.quantity(quantity)[:, i])
-                keep = minmax_indices(values, max_points)
-                send_scalars(rec, paths.run_series(quantity, axis, run.name), t[keep], values[keep])
+                path = paths.run_series(quantity, axis, run.name)
+                _send_thinned(rec, path, t, run.quantity(quantity)[:, i], max_points)
     for label, cols in scene.groups.items():
         for run in scene.runs:
             send_contact(rec, paths.contact_lane(label, run.name), t, run.contact[:, cols[0]])
@@ -234,12 +232,19 @@ def log_scene(
             continue
         for c in range(series.values.shape[1]):
             path = paths.wrist_series(names[c]) if names else paths.joint_series(f"joint{c + 1}")
-            column = np.ascontiguousarray(series.values[:, c])
-            keep = minmax_indices(column, max_points)
-            send_scalars(rec, path, series.t_s[keep], column[keep])
+            _send_thinned(rec, path, series.t_s, series.values[:, c], max_points)
     send_events(rec, scene.events.t_s, scene.events.text, scene.events.level)
     poses = _log_space(rec, scene, runs, max_points, max_poses, model)
     return Logged(Decimation.of(len(t), max_points), poses)
+
+
+def _send_thinned(
+    rec: rr.RecordingStream, path: str, t_s: FloatArray, values: FloatArray, max_points: int
+) -> None:
+    """One series, thinned to ``max_points`` for display (:func:`minmax_indices`)."""
+    column = np.ascontiguousarray(values)
+    keep = minmax_indices(column, max_points)
+    send_scalars(rec, path, t_s[keep], column[keep])
 
 
 def _log_space(
@@ -261,7 +266,7 @@ def _log_space(
     path_keep = peak_indices(magnitude, max_points)
     pose_keep = peak_indices(magnitude, max_poses)
     if scene.desired is not None:
-        desired = _latest(scene.desired.t_s, scene.desired.values, t)
+        desired = latest_at(scene.desired.t_s, scene.desired.values, t)
         _send_path(rec, paths.trajectory(paths.DESIRED), desired[path_keep], style.DESIRED)
         send_marker(rec, f"{paths.trajectory(paths.DESIRED)}/now", t[pose_keep], desired[pose_keep])
         for run, curves in zip(runs, scene.runs, strict=True):
@@ -272,7 +277,7 @@ def _log_space(
     if scene.joints is not None:
         if model is None:
             model = RobotModel(scene.urdf) if scene.urdf else RobotModel()
-        q = _latest(scene.joints.t_s, scene.joints.values, t)
+        q = latest_at(scene.joints.t_s, scene.joints.values, t)
         tips = np.array([model.link_points(q[n])[-1] for n in path_keep])
         _send_path(rec, paths.trajectory(paths.ACTUAL), tips, style.ACTUAL)
         links = np.array([model.link_points(q[n]) for n in pose_keep])
@@ -286,8 +291,9 @@ def _send_path(rec: rr.RecordingStream, folder: str, points: FloatArray, color: 
     rec.log(f"{folder}/path", rr.LineStrips3D([points], colors=color, radii=0.002), static=True)
 
 
-def _latest(t_s: FloatArray, values: FloatArray, at_s: FloatArray) -> FloatArray:
-    """``values`` of the latest sample at or before each of ``at_s`` (the first before it)."""
-    rows = np.maximum(np.searchsorted(t_s, at_s, side="right") - 1, 0)
+def latest_at(t: NDArray[Any], values: FloatArray, at: NDArray[Any]) -> FloatArray:
+    """``values`` of the latest sample at or before each time of ``at`` (the first sample for
+    times before it); ``t`` ascending, both in one unit (s or ns)."""
+    rows = np.maximum(np.searchsorted(t, at, side="right") - 1, 0)
     out: FloatArray = values[rows]
     return out
