@@ -5,18 +5,21 @@ Pure computation, no I/O. The public API::
     simulate(law, force, dt, params) -> SimResult      # a whole trace (T, A), from rest
     make(law, params, axes, dt) -> AdmittanceController  # .step(force_row) per tick
 
-Both run one compiled kernel, so they give identical numbers.
+Both run one compiled kernel, so they give identical numbers. Compiled callers (the rig's tick)
+call that kernel themselves: ``run_compiled(*controller.kernel_arrays()[:7])``.
 """
 
 from hilrig.control.controller import (
     AdmittanceController,
     ContactState,
+    KernelArrays,
     SimResult,
     gains,
     make,
     resolve_params,
     simulate,
 )
+from hilrig.control.kernel import run as run_compiled
 from hilrig.control.params import (
     AdmittanceParams,
     AxisBounds,
@@ -41,6 +44,7 @@ __all__ = [
     "ChiReading",
     "ContactState",
     "Integrator",
+    "KernelArrays",
     "Law",
     "NonFiniteForceError",
     "ParameterError",
@@ -52,6 +56,7 @@ __all__ = [
     "make",
     "preset",
     "resolve_params",
+    "run_compiled",
     "simulate",
     "stability_report",
 ]

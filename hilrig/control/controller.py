@@ -11,7 +11,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -132,6 +132,29 @@ def _refuse_nonfinite(force: NDArray[np.float64], tick_offset: int = 0) -> None:
         )
 
 
+class KernelArrays(NamedTuple):
+    """A controller's compiled state, for compiled callers such as the rig's tick.
+
+    ``run_compiled(force, P, cfg, S, G, out, contact)`` (:func:`hilrig.control.run_compiled`)
+    advances the controller by one tick per row of ``force`` (1, A), exactly as ``step`` does;
+    ``offset``, ``velocity``, ``damping``, ``stiffness`` (A,) are views of its results and
+    ``mass`` (A,) the per-axis m (kg, or kg*m^2 on joints). Every array is the controller's own.
+    """
+
+    force: NDArray[np.float64]
+    P: NDArray[np.float64]
+    cfg: NDArray[np.int64]
+    S: NDArray[np.float64]
+    G: NDArray[np.int64]
+    out: NDArray[np.float64]
+    contact: NDArray[np.int8]
+    offset: NDArray[np.float64]
+    velocity: NDArray[np.float64]
+    damping: NDArray[np.float64]
+    stiffness: NDArray[np.float64]
+    mass: NDArray[np.float64]
+
+
 class AdmittanceController:
     """A per-tick admittance controller over ``axes`` axes (create it with :func:`make`).
 
@@ -183,6 +206,24 @@ class AdmittanceController:
         self._out[:] = 0.0
         self._contact[:] = 0
         self._ticks = 0
+
+    def kernel_arrays(self) -> KernelArrays:
+        """The arrays a compiled caller passes to ``run_compiled`` (see :class:`KernelArrays`)."""
+        p = self._packed
+        return KernelArrays(
+            self._force,
+            p.P,
+            p.cfg,
+            self._S,
+            self._G,
+            self._out,
+            self._contact,
+            self._offset,
+            self._velocity,
+            self._damping,
+            self._stiffness,
+            self._m,
+        )
 
     def step(self, force_row: ArrayLike) -> NDArray[np.float64]:
         """Advance one tick with force_row (axes,); raises NonFiniteForceError on NaN/inf."""

@@ -77,6 +77,11 @@ class GravityCompensator:
         """A copy of the current bias (6,), N and N*m."""
         return self._bias.copy()
 
+    @property
+    def gravity_in_base(self) -> NDArray[np.float64]:
+        """A copy of gravity in the base frame (3,), m/s^2."""
+        return self._gravity_in_base.copy()
+
     def tare(self, wrench_in_sensor: ArrayLike, r_base_sensor: NDArray[np.float64]) -> None:
         """Take ``wrench_in_sensor`` (mean raw reading, no contact) at ``r_base_sensor`` as zero.
 

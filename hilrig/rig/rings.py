@@ -139,16 +139,27 @@ class Ring:
         """The next free slot as a writable 0-d row view, or None if the ring is full (counted
         in :attr:`dropped`). Fill it, then :meth:`commit`; until then it is invisible to the
         consumer, and calling reserve again returns the same slot."""
+        index = self.reserve_index()
+        return None if index < 0 else self._slots[index]
+
+    def reserve_index(self) -> int:
+        """Like :meth:`reserve`, but the slot's index into :attr:`rows` (-1 when full, counted),
+        for compiled code that fills the row in place."""
         write = self._write
         if write - self._read_seen >= self._capacity:
-            self._read_seen = self._words[_READ_AT]  # only look when it seems full
+            self._read_seen = self._words[_READ_AT]
             if write - self._read_seen >= self._capacity:
                 self._dropped += 1
                 self._words[_DROPPED_AT] = self._dropped
                 self._reserved = False
-                return None
+                return -1
         self._reserved = True
-        return self._slots[write % self._capacity]
+        return write % self._capacity
+
+    @property
+    def rows(self) -> Rows:
+        """Every slot of the ring (the shared block's rows), for :meth:`reserve_index`."""
+        return self._data
 
     def commit(self) -> None:
         """Publish the reserved row; without a reservation (reserve returned None) do nothing."""

@@ -38,47 +38,41 @@ moving at its last velocity, so a jump in the target is followed without oversho
 guarantees hold to float64 rounding (positions are clipped exactly; velocities and accelerations
 carry errors of order 1e-12 relative).
 
-The arithmetic runs in small numba kernels on packed, preallocated arrays; a tick's only
-allocation is the 4x4 pose forward kinematics returns. A clamp uses its model's work data: call
-it from the thread that owns the model.
+The arithmetic runs in the numba kernels of ``clamp_kernels.py`` on packed, preallocated arrays,
+which the rig's compiled tick calls directly (:meth:`SafetyClamp.kernel_arrays`); through this
+class a tick's only allocation is the 4x4 pose forward kinematics returns. A clamp uses its
+model's work data: call it from the thread that owns the model.
 """
 
 from __future__ import annotations
 
-import enum
 import math
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from numba import njit
 from numpy.typing import NDArray
 
 from hilrig.errors import ParameterError
+from hilrig.rig.clamp_kernels import (
+    CAND_Q,
+    HI,
+    HOLDING,
+    LO,
+    NON_FINITE,
+    TARGET,
+    Clamp,
+    Q,
+    V,
+    candidate,
+    exceeds,
+    finish,
+)
 from hilrig.robot import AUBO_I5_LIMITS, FLANGE_FRAME, JOINTS, JointLimits, RobotModel
 
+__all__ = ["Clamp", "SafetyClamp", "SafetyConfig", "axis_reach_m"]
+
 Vec3 = tuple[float, float, float]
-
-
-class Clamp(enum.IntFlag):
-    """What engaged on a tick (bitmask returned by ``clamp`` and ``hold``); 0: target sent as is."""
-
-    POSITION = 1  # a target beyond the limits, or the braking distance to a limit, bound a joint
-    VELOCITY = 2  # the joint velocity limit bound a joint
-    ACCELERATION = 4  # the acceleration limit bound a joint (also: braking onto a jumped target)
-    WORKSPACE = 8  # the step would have let the TCP leave the box: braked instead
-    NON_FINITE = 16  # the target held NaN or inf: braked instead
-    HOLDING = 32  # a controlled stop (hold() or a non-finite target): braking toward standstill
-
-
-_POSITION, _VELOCITY = int(Clamp.POSITION), int(Clamp.VELOCITY)
-_ACCELERATION, _WORKSPACE = int(Clamp.ACCELERATION), int(Clamp.WORKSPACE)
-_NON_FINITE, _HOLDING = int(Clamp.NON_FINITE), int(Clamp.HOLDING)
-# A gap to the target below this is closed in one tick (a velocity change < 1e-9 rad/s at 1 kHz).
-_SNAP_RAD = 1e-12
-# Rows of the packed joint limits (5, 6) and state (6, 6) the kernels share.
-LO, HI, VMAX, AMAX, REACH = range(5)
-Q, V, TARGET, CAND_Q, CAND_V, CAND_TARGET = range(6)
 
 
 @dataclass(frozen=True)
@@ -204,9 +198,14 @@ class SafetyClamp:
         self._torque_limit_nm = config.protective_torque_nm
         # numba loads compiled kernels on first call (~0.2 s): do it now, not on the first tick
         scratch = self._state.copy()
-        _candidate(q0, self._limits, scratch, self._dt)
-        _finish(self._no_pose, self._box, self._limits, scratch, self._dt, q0.copy(), True)
-        _exceeds(q0[:3].copy(), q0, 1.0, 1.0)
+        candidate(q0, self._limits, scratch, self._dt)
+        finish(self._no_pose, self._box, self._limits, scratch, self._dt, q0.copy(), True)
+        exceeds(q0[:3].copy(), q0, 1.0, 1.0)
+
+    def kernel_arrays(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """The packed (limits (5, 6), box (2, 3), state (6, 6)) the kernels work on: the clamp's
+        own arrays, for a compiled caller that takes over its ticks (``hilrig.rig.tick``)."""
+        return self._limits, self._box, self._state
 
     @property
     def q_rad(self) -> NDArray[np.float64]:
@@ -227,12 +226,12 @@ class SafetyClamp:
         self._check(q_target_rad, "q_target_rad")
         self._check(out, "out")
         state = self._state
-        flags: int = _candidate(q_target_rad, self._limits, state, self._dt)
-        if flags & _NON_FINITE:
-            _finish(self._no_pose, self._box, self._limits, state, self._dt, out, True)
-            return _NON_FINITE | _HOLDING
+        flags: int = candidate(q_target_rad, self._limits, state, self._dt)
+        if flags & NON_FINITE:
+            finish(self._no_pose, self._box, self._limits, state, self._dt, out, True)
+            return NON_FINITE | HOLDING
         pose = self._model.fk(self._candidate_q)
-        braked: int = _finish(pose, self._box, self._limits, state, self._dt, out, False)
+        braked: int = finish(pose, self._box, self._limits, state, self._dt, out, False)
         return braked or flags
 
     def hold(self, out: NDArray[np.float64]) -> int:
@@ -243,8 +242,8 @@ class SafetyClamp:
         from wherever the stop has got to.
         """
         self._check(out, "out")
-        _finish(self._no_pose, self._box, self._limits, self._state, self._dt, out, True)
-        return _HOLDING
+        finish(self._no_pose, self._box, self._limits, self._state, self._dt, out, True)
+        return HOLDING
 
     def stop_required(
         self, force_xyz_n: NDArray[np.float64], joint_torque_nm: NDArray[np.float64]
@@ -257,7 +256,7 @@ class SafetyClamp:
                 f"SafetyClamp.stop_required: shapes (3,) and (6,) expected, got "
                 f"{force_xyz_n.shape} and {joint_torque_nm.shape}"
             )
-        exceeded: bool = _exceeds(
+        exceeded: bool = exceeds(
             force_xyz_n, joint_torque_nm, self._force_limit_n, self._torque_limit_nm
         )
         return exceeded
@@ -275,130 +274,3 @@ class SafetyClamp:
                 f"SafetyClamp: {name} must be a float64 array of shape (6,), "
                 f"got {array.dtype} {array.shape}"
             )
-
-
-@njit(cache=True, inline="always")
-def _stop_speed(distance: float, a: float, dt: float) -> float:
-    """The largest speed v >= 0 toward a wall ``distance`` away with v*dt + v**2/(2a) <= distance.
-
-    Moving one tick at v then braking at ``a`` stops before the wall. Written without the
-    cancellation of ``sqrt(x**2 + 2 a d) - x``.
-    """
-    if distance <= 0.0:
-        return 0.0
-    x = a * dt
-    return 2.0 * a * distance / (math.sqrt(x * x + 2.0 * a * distance) + x)
-
-
-@njit(cache=True)
-def _candidate(
-    target: NDArray[np.float64], lim: NDArray[np.float64], st: NDArray[np.float64], dt: float
-) -> int:
-    """The joint-limited step toward ``target`` into st[CAND_*]; its flags, or NON_FINITE alone."""
-    for j in range(target.shape[0]):
-        if not math.isfinite(target[j]):
-            return _NON_FINITE
-    flags = 0
-    for j in range(target.shape[0]):
-        lo, hi, v_max, a = lim[LO, j], lim[HI, j], lim[VMAX, j], lim[AMAX, j]
-        q, v, last_target = st[Q, j], st[V, j], st[TARGET, j]
-        t = target[j]
-        if t < lo or t > hi:
-            t = min(max(t, lo), hi)
-            flags |= _POSITION
-        v_want = (t - q) / dt
-        approaching = False
-        gap = last_target - q  # zero when the previous tick reached its target
-        if gap != 0.0:
-            v_approach = (t - last_target) / dt + math.copysign(_stop_speed(abs(gap), a, dt), gap)
-            if abs(v_want - v_approach) * dt > _SNAP_RAD:
-                v_want = v_approach
-                approaching = True
-        up_v, up_a, up_p = v_max, v + a * dt, _stop_speed(hi - q, a, dt)
-        down_v, down_a, down_p = -v_max, v - a * dt, -_stop_speed(q - lo, a, dt)
-        up = min(up_v, up_a, up_p)
-        down = max(down_v, down_a, down_p)
-        v_new = min(max(v_want, down), up)
-        if v_new == v_want and not approaching:
-            q_new = t
-        else:
-            q_new = q + v_new * dt
-            if v_new == v_want:
-                flags |= _ACCELERATION
-            elif v_new == up:
-                flags |= _flags_of(v_new, up_v, up_a, up_p)
-            else:
-                flags |= _flags_of(v_new, down_v, down_a, down_p)
-        if q_new < lo or q_new > hi:  # only ever by rounding
-            q_new = min(max(q_new, lo), hi)
-            flags |= _POSITION
-        st[CAND_Q, j] = q_new
-        st[CAND_V, j] = (q_new - q) / dt
-        st[CAND_TARGET, j] = t
-    return flags
-
-
-@njit(cache=True, inline="always")
-def _flags_of(v: float, by_velocity: float, by_acceleration: float, by_position: float) -> int:
-    flags = 0
-    if v == by_velocity:
-        flags |= _VELOCITY
-    if v == by_acceleration:
-        flags |= _ACCELERATION
-    if v == by_position:
-        flags |= _POSITION
-    return flags
-
-
-@njit(cache=True)
-def _finish(
-    pose: NDArray[np.float64],
-    box: NDArray[np.float64],
-    lim: NDArray[np.float64],
-    st: NDArray[np.float64],
-    dt: float,
-    out: NDArray[np.float64],
-    hold: bool,
-) -> int:
-    """Commit the candidate, or the brake step when holding or the candidate fails (W).
-
-    ``pose`` is the candidate's TCP pose (4x4, base frame, m), unused when holding. Returns
-    WORKSPACE when the candidate was refused for the box, else 0; writes ``out``.
-    """
-    joints = st.shape[1]
-    braked = 0
-    if not hold:
-        rho = 0.0
-        for j in range(joints):
-            v = st[CAND_V, j]
-            rho += lim[REACH, j] * v * v / (2.0 * lim[AMAX, j])
-        for k in range(3):
-            if not (box[0, k] + rho <= pose[k, 3] <= box[1, k] - rho):
-                braked = _WORKSPACE
-    if hold or braked:
-        for j in range(joints):
-            v, dv = st[V, j], lim[AMAX, j] * dt
-            v_new = v - dv if v > dv else (v + dv if v < -dv else 0.0)
-            q = st[Q, j]
-            q_new = min(max(q + v_new * dt, lim[LO, j]), lim[HI, j])
-            st[CAND_Q, j] = q_new
-            st[CAND_V, j] = (q_new - q) / dt
-    for j in range(joints):
-        q_new = st[CAND_Q, j]
-        st[Q, j] = q_new
-        st[V, j] = st[CAND_V, j]
-        # after a stop, the next target's jump is measured from where the stop got to
-        st[TARGET, j] = q_new if hold else st[CAND_TARGET, j]
-        out[j] = q_new
-    return braked
-
-
-@njit(cache=True)
-def _exceeds(
-    force: NDArray[np.float64], torque: NDArray[np.float64], force_max: float, torque_max: float
-) -> bool:
-    force_sq = force[0] * force[0] + force[1] * force[1] + force[2] * force[2]
-    exceeded = not force_sq <= force_max * force_max  # NaN exceeds
-    for j in range(torque.shape[0]):
-        exceeded |= not abs(torque[j]) <= torque_max
-    return exceeded
