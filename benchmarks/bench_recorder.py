@@ -18,7 +18,8 @@ import numpy as np
 
 from benchmarks.harness import Result, quantiles_us
 from hilrig.recording import SessionInfo
-from hilrig.rig.recorder import RecorderFeed, RecorderProcess
+from hilrig.rig.recorder_feed import RecorderFeed
+from hilrig.rig.recorder_process import RecorderProcess
 
 DURATION_S = 10.0
 TICK_NS = 1_000_000

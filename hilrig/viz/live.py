@@ -1,7 +1,7 @@
 """The live view of ``hilrig record --view``: the session in Rerun while it is recorded.
 
 The loop does nothing for it. The recorder process, which reads every row anyway, forwards a
-copy decimated to 50 Hz (:class:`~hilrig.rig.recorder.ViewForwarder`) in batches over a
+copy decimated to 50 Hz (:class:`~hilrig.rig.view_feed.ViewForwarder`) in batches over a
 bounded queue, never waiting: a full queue drops the batch. The viewer-feed process started by
 :class:`LiveView` (niced, so the loop's processes come first) turns the batches into the entity
 tree of a file's view (:mod:`.paths`, the recorded controller as run ``recorded``) and streams
@@ -33,9 +33,10 @@ from numpy.typing import NDArray
 
 from hilrig.errors import ViewError
 from hilrig.recording.samples import EventRecord
-from hilrig.rig.recorder import START_METHOD, VIEW_RATE_HZ, ViewBatch, ViewCounts
+from hilrig.rig.recorder_feed import START_METHOD
 from hilrig.rig.records import AXIS_NAMES
 from hilrig.rig.rings import Rows
+from hilrig.rig.view_feed import VIEW_RATE_HZ, ViewBatch, ViewCounts
 from hilrig.robot.model import RobotModel
 from hilrig.viz import paths, style
 from hilrig.viz.blueprint import blueprint
@@ -125,7 +126,7 @@ def _groups() -> dict[str, int]:
 
 
 class LiveLogger:
-    """Logs :class:`~hilrig.rig.recorder.ViewBatch` es to ``rec`` on the entity tree of a
+    """Logs :class:`~hilrig.rig.view_feed.ViewBatch` es to ``rec`` on the entity tree of a
     file's view, as the run ``recorded``: forces, controller quantities, contact lanes, joints,
     wrist F/T, events, and in 3D the robot, the force arrow and where each end trajectory is now
     (no whole-path lines). Carries each contact lane's last state and the last joint angles from

@@ -24,7 +24,8 @@ from mcap_ros2.decoder import DecoderFactory
 
 from hilrig.errors import RecordingError
 from hilrig.recording import EventKind, EventRecord, SessionInfo, inspect, load, recover
-from hilrig.rig.recorder import RecorderFeed, RecorderProcess
+from hilrig.rig.recorder_feed import RecorderFeed
+from hilrig.rig.recorder_process import RecorderProcess
 from hilrig.rig.records import AXIS_NAMES
 
 START_MONO_NS = 10_000_000_000

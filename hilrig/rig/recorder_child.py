@@ -1,0 +1,165 @@
+"""The recorder process: every ``poll_s`` it copies out what the rings hold, turns the rows
+into samples (:mod:`.row_messages`) and writes them with :class:`~hilrig.recording.SessionWriter`;
+with a live view it also forwards a decimated copy (:class:`~.view_feed.ViewForwarder`)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import queue
+import signal
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from multiprocessing.queues import Queue
+from pathlib import Path
+from types import FrameType
+
+from hilrig.errors import HilrigError
+from hilrig.recording import (
+    Attachment,
+    EventRecord,
+    SessionInfo,
+    SessionWriter,
+    SplitPolicy,
+    default_channels,
+)
+from hilrig.rig.recorder_feed import release_rings
+from hilrig.rig.rings import Ring, RingSpec
+from hilrig.rig.row_messages import EVENTS_TOPIC, ft_samples, joint_samples, tick_samples
+from hilrig.rig.view_feed import VIEW_BATCH_S, VIEW_HANDOFF_S, ViewBatch, ViewForwarder
+
+IDLE_FLUSH_S = 0.25  # hand a quiet writer's open chunk to the OS after this long without data
+STOP = None  # the last item RecorderProcess.stop() puts on the event queue
+
+
+@dataclass(frozen=True)
+class RecorderJob:
+    """Everything the recorder process needs, pickled into it when it is spawned."""
+
+    path: Path
+    session: SessionInfo
+    rings: tuple[RingSpec, RingSpec, RingSpec]  # ft, joint, tick
+    events: Queue[EventRecord | None]
+    parent_pid: int
+    controller: str
+    axis_names: tuple[str, ...]
+    urdf: str | None
+    attachments: tuple[Attachment, ...]
+    calibration: Mapping[str, object] | None
+    split: SplitPolicy | None
+    poll_s: float
+    view: Queue[ViewBatch | None] | None
+    view_rate_hz: float
+
+
+def record(job: RecorderJob, report: Connection) -> None:
+    """The recorder process: open the file, report ready, write until told to stop, report."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the loop's; it then calls stop()
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked by start()
+    rings: list[Ring] = []
+    try:
+        for spec in job.rings:
+            rings.append(Ring.attach(spec))
+        writer = SessionWriter(
+            job.path,
+            job.session,
+            channels=default_channels(axis_names=job.axis_names, controller=job.controller),
+            calibration=job.calibration,
+            attachments=job.attachments,
+            urdf=job.urdf,
+            split=job.split,
+        )
+    except HilrigError as err:
+        release_rings(rings)
+        _send(report, "error", str(err))
+        return
+    recorder = _Recorder(job, writer, rings)
+    signal.signal(signal.SIGTERM, recorder.on_sigterm)
+    _send(report, "ready", None)
+    try:
+        messages = recorder.run()
+    except HilrigError as err:
+        _send(report, "error", str(err))
+        return
+    finally:
+        try:
+            writer.close()
+            release_rings(rings)
+        finally:  # the file is closed: now the live view's last batch may take its time
+            views = None if recorder.view is None else recorder.view.finish(VIEW_HANDOFF_S)
+    _send(report, "done", (messages, views))
+
+
+def _send(report: Connection, kind: str, value: object) -> None:
+    """Tell the parent how things went (it may be gone: then nobody needs to know)."""
+    with contextlib.suppress(OSError):
+        report.send((kind, value))
+
+
+class _Recorder:
+    """The recorder process's loop over the rings and the event queue."""
+
+    def __init__(self, job: RecorderJob, writer: SessionWriter, rings: list[Ring]) -> None:
+        self.job, self.writer = job, writer
+        self.ft, self.joint, self.tick = rings
+        self.terminated = False
+        self.view = None
+        if job.view is not None:
+            self.view = ViewForwarder(job.view, rate_hz=job.view_rate_hz, batch_s=VIEW_BATCH_S)
+
+    def on_sigterm(self, signum: int, frame: FrameType | None) -> None:
+        """SIGTERM (also multiprocessing's at the parent's exit) finishes the file cleanly."""
+        self.terminated = True
+
+    def run(self) -> int:
+        """Write what arrives every ``poll_s`` until the stop marker, SIGTERM or the parent's
+        death; returns the number of messages written."""
+        messages = 0
+        last_data = time.monotonic()
+        dirty = False  # the writer holds data since the last flush
+        while True:
+            # Checked before the drain: a dead loop's last rows are then all in the rings.
+            finishing = self.terminated or os.getppid() != self.job.parent_pid
+            written, stopping = self.drain_events()
+            # Rows are read after the events: all rows committed before stop() are in the rings.
+            for messages_of, ring, stream in (
+                (ft_samples, self.ft, "ft"),
+                (joint_samples, self.joint, "joints"),
+                (tick_samples, self.tick, "ticks"),
+            ):
+                rows = ring.read_available()
+                for topic, sample in messages_of(rows):
+                    self.writer.write(topic, sample)
+                    written += 1
+                if self.view is not None:
+                    self.view.rows_read(stream, rows)
+            messages += written
+            if self.view is not None:
+                self.view.send_due(time.monotonic_ns())
+            now = time.monotonic()
+            if written:
+                last_data, dirty = now, True
+            elif dirty and now - last_data >= IDLE_FLUSH_S:
+                self.writer.flush()  # a paused loop's last rows reach the disk too
+                dirty = False
+            if stopping or finishing:
+                return messages
+
+    def drain_events(self) -> tuple[int, bool]:
+        """Write queued events, waiting up to ``poll_s`` for the first (the loop's sleep).
+        Returns how many were written and whether the stop marker came."""
+        events = self.job.events
+        written = 0
+        try:
+            item = events.get(timeout=self.job.poll_s)
+            while item is not STOP:
+                self.writer.write(EVENTS_TOPIC, item)
+                written += 1
+                if self.view is not None:
+                    self.view.event(item)
+                item = events.get_nowait()
+        except queue.Empty:
+            return written, False
+        return written, True

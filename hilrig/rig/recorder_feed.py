@@ -1,0 +1,122 @@
+"""The loop's end of the recorder: shared-memory rings for the rows and a queue for events.
+
+:class:`RecorderFeed` lives in the loop process. It owns three rings (wrist F/T, joint state,
+tick rows; 2 s at 1 kHz each by default) and a bounded queue for events, the only variable-size
+records. Every call returns at once: a full ring or queue refuses the row or event and counts a
+drop (:attr:`RecorderFeed.drops`), so a stalled, killed or missing recorder costs data, never
+the tick.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import queue
+from collections.abc import Sequence
+from multiprocessing.queues import Queue
+from types import TracebackType
+from typing import Final
+
+from hilrig.errors import RecordingError
+from hilrig.recording import EventRecord
+from hilrig.rig.records import FT_DTYPE, JOINT_DTYPE, TICK_DTYPE
+from hilrig.rig.rings import Ring, RingSpec, Rows
+
+# "spawn": the loop process runs driver threads, and forking a threaded process can copy a lock
+# held by another thread into the child. "forkserver" would be as safe, but its children are
+# the fork server's, not the loop's: the recorder could not watch its parent's pid.
+START_METHOD: Final = "spawn"
+RING_ROWS = 2048  # per ring: 2 s at 1 kHz
+EVENT_SLOTS = 1024
+
+
+class RecorderFeed:
+    """The loop's end of the recorder: rings for wrist F/T, joint-state and tick rows, a queue
+    for events. Nothing here blocks, and only :meth:`event` allocates.
+
+    Per row: ``slot = feed.tick_slot()``; if it is not None fill its fields in place
+    (``slot["force"] = f``, dtypes in :mod:`.records`); then ``feed.commit_tick()``, which does
+    nothing when the slot was refused. The feed must be created before the recorder process and
+    closed after it stopped (:meth:`close` unlinks the rings). ``rows`` per ring bound what may
+    wait for a recorder that has not begun yet.
+    """
+
+    def __init__(self, *, rows: int = RING_ROWS, events: int = EVENT_SLOTS) -> None:
+        created: list[Ring] = []
+        try:
+            for label, dtype in (("ft", FT_DTYPE), ("joint", JOINT_DTYPE), ("tick", TICK_DTYPE)):
+                created.append(Ring.create(RingSpec.unique(label, dtype, rows)))
+        except RecordingError:
+            release_rings(created)
+            raise
+        self.ft, self.joint, self.tick = created
+        self.events: Queue[EventRecord | None] = multiprocessing.get_context(START_METHOD).Queue(
+            events
+        )
+        self.event_drops = 0
+
+    def ft_slot(self) -> Rows | None:
+        """The next wrist F/T row (FT_DTYPE) to fill, or None if its ring is full (a drop)."""
+        return self.ft.reserve()
+
+    def commit_ft(self) -> None:
+        """Publish the F/T row returned by :meth:`ft_slot` (nothing if it returned None)."""
+        self.ft.commit()
+
+    def joint_slot(self) -> Rows | None:
+        """The next joint-state row (JOINT_DTYPE) to fill, or None if its ring is full."""
+        return self.joint.reserve()
+
+    def commit_joint(self) -> None:
+        """Publish the row returned by :meth:`joint_slot` (nothing if it returned None)."""
+        self.joint.commit()
+
+    def tick_slot(self) -> Rows | None:
+        """The next tick row (TICK_DTYPE) to fill, or None if its ring is full."""
+        return self.tick.reserve()
+
+    def commit_tick(self) -> None:
+        """Publish the row returned by :meth:`tick_slot` (nothing if it returned None)."""
+        self.tick.commit()
+
+    def event(self, record: EventRecord) -> bool:
+        """Queue ``record`` for ``/events``; False (and a drop) if the queue is full. The
+        queue's feeder thread pickles it; the first call starts that thread."""
+        try:
+            self.events.put_nowait(record)
+        except queue.Full:
+            self.event_drops += 1
+            return False
+        return True
+
+    @property
+    def drops(self) -> int:
+        """Rows and events refused so far (every ring's drops plus the event queue's)."""
+        return self.ft.dropped + self.joint.dropped + self.tick.dropped + self.event_drops
+
+    def close(self) -> None:
+        """Unlink and unmap the rings and close the event queue; events not yet taken by a
+        recorder are discarded. Raises RecordingError if a reserved slot is still referenced
+        (the rings' names are gone by then)."""
+        self.events.close()
+        self.events.cancel_join_thread()  # never wait at exit for a recorder that is gone
+        release_rings([self.ft, self.joint, self.tick])
+
+    def __enter__(self) -> RecorderFeed:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+def release_rings(rings: Sequence[Ring]) -> None:
+    """Unmap each ring; its creator unlinks it first, so that a failing close cannot leave the
+    name behind."""
+    for ring in rings:
+        if ring.owner:
+            ring.unlink()
+        ring.close()
