@@ -38,8 +38,8 @@ def run() -> list[Result]:
         info = SessionInfo.starting_now(
             session_id="bench-recorder", subject_id="B001", rig="benchmark", controller="adaptive"
         )
-        recorder = RecorderProcess(Path(tmp) / "bench.mcap", info, feed=feed)
-        recorder.start()
+        recorder = RecorderProcess(Path(tmp) / "bench.mcap", feed=feed)
+        recorder.start(info)
         try:
             return measure(feed, recorder)
         finally:

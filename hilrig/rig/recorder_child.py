@@ -4,7 +4,6 @@ with a live view it also forwards a decimated copy (:class:`~.view_feed.ViewForw
 
 from __future__ import annotations
 
-import contextlib
 import os
 import queue
 import signal
@@ -25,6 +24,7 @@ from hilrig.recording import (
     SplitPolicy,
     default_channels,
 )
+from hilrig.rig.child import report
 from hilrig.rig.recorder_feed import release_rings
 from hilrig.rig.rings import Ring, RingSpec
 from hilrig.rig.row_messages import EVENTS_TOPIC, ft_samples, joint_samples, tick_samples
@@ -32,14 +32,14 @@ from hilrig.rig.view_feed import VIEW_BATCH_S, VIEW_HANDOFF_S, ViewBatch, ViewFo
 
 IDLE_FLUSH_S = 0.25  # hand a quiet writer's open chunk to the OS after this long without data
 STOP = None  # the last item RecorderProcess.stop() puts on the event queue
+BEGIN = "begin"  # RecorderProcess.begin() sends (BEGIN, session, calibration)
 
 
 @dataclass(frozen=True)
 class RecorderJob:
-    """Everything the recorder process needs, pickled into it when it is spawned."""
+    """What the recorder process needs from the start, pickled into it when it is spawned."""
 
     path: Path
-    session: SessionInfo
     rings: tuple[RingSpec, RingSpec, RingSpec]  # ft, joint, tick
     events: Queue[EventRecord | None]
     parent_pid: int
@@ -47,41 +47,46 @@ class RecorderJob:
     axis_names: tuple[str, ...]
     urdf: str | None
     attachments: tuple[Attachment, ...]
-    calibration: Mapping[str, object] | None
     split: SplitPolicy | None
     poll_s: float
     view: Queue[ViewBatch | None] | None
     view_rate_hz: float
 
 
-def record(job: RecorderJob, report: Connection) -> None:
-    """The recorder process: open the file, report ready, write until told to stop, report."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the loop's; it then calls stop()
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked by start()
+def record(conn: Connection, job: RecorderJob) -> None:
+    """The recorder process: attach the rings, wait for ``("begin", session, calibration)``
+    (anything else, or the parent's end, ends it: ``done`` with nothing written), open the file,
+    report ready, write until told to stop, report done."""
     rings: list[Ring] = []
     try:
         for spec in job.rings:
             rings.append(Ring.attach(spec))
+        begin = _begin(conn)
+        if begin is None:
+            release_rings(rings)
+            report(conn, "done", (0, None))
+            return
+        session, calibration = begin
         writer = SessionWriter(
             job.path,
-            job.session,
+            session,
             channels=default_channels(axis_names=job.axis_names, controller=job.controller),
-            calibration=job.calibration,
+            calibration=calibration,
             attachments=job.attachments,
             urdf=job.urdf,
             split=job.split,
         )
     except HilrigError as err:
         release_rings(rings)
-        _send(report, "error", str(err))
+        report(conn, "error", str(err))
         return
     recorder = _Recorder(job, writer, rings)
     signal.signal(signal.SIGTERM, recorder.on_sigterm)
-    _send(report, "ready", None)
+    report(conn, "ready")
     try:
         messages = recorder.run()
     except HilrigError as err:
-        _send(report, "error", str(err))
+        report(conn, "error", str(err))
         return
     finally:
         try:
@@ -89,13 +94,19 @@ def record(job: RecorderJob, report: Connection) -> None:
             release_rings(rings)
         finally:  # the file is closed: now the live view's last batch may take its time
             views = None if recorder.view is None else recorder.view.finish(VIEW_HANDOFF_S)
-    _send(report, "done", (messages, views))
+    report(conn, "done", (messages, views))
 
 
-def _send(report: Connection, kind: str, value: object) -> None:
-    """Tell the parent how things went (it may be gone: then nobody needs to know)."""
-    with contextlib.suppress(OSError):
-        report.send((kind, value))
+def _begin(conn: Connection) -> tuple[SessionInfo, Mapping[str, object] | None] | None:
+    """The session and calibration of the parent's ``begin``; None if it stops first or is
+    gone."""
+    try:
+        message = conn.recv()
+    except (EOFError, OSError):
+        return None
+    if isinstance(message, tuple) and message[0] == BEGIN:
+        return message[1], message[2]
+    return None
 
 
 class _Recorder:

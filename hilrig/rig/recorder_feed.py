@@ -9,22 +9,17 @@ the tick.
 
 from __future__ import annotations
 
-import multiprocessing
 import queue
 from collections.abc import Sequence
 from multiprocessing.queues import Queue
 from types import TracebackType
-from typing import Final
 
 from hilrig.errors import RecordingError
 from hilrig.recording import EventRecord
+from hilrig.rig.child import CONTEXT
 from hilrig.rig.records import FT_DTYPE, JOINT_DTYPE, TICK_DTYPE
 from hilrig.rig.rings import Ring, RingSpec, Rows
 
-# "spawn": the loop process runs driver threads, and forking a threaded process can copy a lock
-# held by another thread into the child. "forkserver" would be as safe, but its children are
-# the fork server's, not the loop's: the recorder could not watch its parent's pid.
-START_METHOD: Final = "spawn"
 RING_ROWS = 2048  # per ring: 2 s at 1 kHz
 EVENT_SLOTS = 1024
 
@@ -49,9 +44,7 @@ class RecorderFeed:
             release_rings(created)
             raise
         self.ft, self.joint, self.tick = created
-        self.events: Queue[EventRecord | None] = multiprocessing.get_context(START_METHOD).Queue(
-            events
-        )
+        self.events: Queue[EventRecord | None] = CONTEXT.Queue(events)
         self.event_drops = 0
 
     def ft_slot(self) -> Rows | None:

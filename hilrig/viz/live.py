@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from hilrig.errors import ViewError
 from hilrig.recording.samples import EventRecord
-from hilrig.rig.recorder_feed import START_METHOD
+from hilrig.rig.child import START_METHOD
 from hilrig.rig.records import AXIS_NAMES
 from hilrig.rig.rings import Rows
 from hilrig.rig.view_feed import VIEW_RATE_HZ, ViewBatch, ViewCounts

@@ -169,8 +169,8 @@ def test_every_row_and_event_reaches_its_topic_with_its_values(
     tmp_path: Path, feed: RecorderFeed
 ) -> None:
     path = tmp_path / "session.mcap"
-    recorder = RecorderProcess(path, session(), feed=feed, urdf=URDF, controller="adaptive")
-    recorder.start()
+    recorder = RecorderProcess(path, feed=feed, urdf=URDF, controller="adaptive")
+    recorder.start(session())
     n = 1200
     push_rows(feed, 0, n // 2)
     assert recorder.pid is not None
@@ -209,8 +209,8 @@ def test_killed_recorder_file_recovers_losing_at_most_half_a_second(
     tmp_path: Path, feed: RecorderFeed
 ) -> None:
     path = tmp_path / "killed.mcap"
-    recorder = RecorderProcess(path, session(), feed=feed)
-    recorder.start()
+    recorder = RecorderProcess(path, feed=feed)
+    recorder.start(session())
     n = 1500
     push_rows(feed, 0, n)
     wait_until_drained(feed)
@@ -231,8 +231,8 @@ def test_killed_recorder_file_recovers_losing_at_most_half_a_second(
 
 def test_rows_of_a_paused_loop_reach_the_disk(tmp_path: Path, feed: RecorderFeed) -> None:
     path = tmp_path / "paused.mcap"
-    recorder = RecorderProcess(path, session(), feed=feed)
-    recorder.start()
+    recorder = RecorderProcess(path, feed=feed)
+    recorder.start(session())
     push_rows(feed, 0, 20, paced=False)  # far less than a chunk's 0.25 s of log time
     deadline = time.monotonic() + 20
     while inspect(path).chunks == 0:  # written once the recorder has been idle a while
@@ -246,8 +246,8 @@ def test_rows_of_a_paused_loop_reach_the_disk(tmp_path: Path, feed: RecorderFeed
 def test_stalled_recorder_makes_the_feed_drop_instead_of_blocking(tmp_path: Path) -> None:
     path = tmp_path / "stalled.mcap"
     with RecorderFeed(rows=16, events=4) as feed:
-        recorder = RecorderProcess(path, session(), feed=feed)
-        recorder.start()
+        recorder = RecorderProcess(path, feed=feed)
+        recorder.start(session())
         assert recorder.pid is not None
         os.kill(recorder.pid, signal.SIGSTOP)
         try:
@@ -269,8 +269,8 @@ def test_stalled_recorder_makes_the_feed_drop_instead_of_blocking(tmp_path: Path
 
 def test_sigterm_finishes_the_file(tmp_path: Path, feed: RecorderFeed) -> None:
     path = tmp_path / "terminated.mcap"
-    recorder = RecorderProcess(path, session(), feed=feed)
-    recorder.start()
+    recorder = RecorderProcess(path, feed=feed)
+    recorder.start(session())
     push_rows(feed, 0, 50, paced=False)
     wait_until_drained(feed)
     assert recorder.pid is not None
@@ -282,17 +282,17 @@ def test_sigterm_finishes_the_file(tmp_path: Path, feed: RecorderFeed) -> None:
 def test_existing_file_is_refused_at_start(tmp_path: Path, feed: RecorderFeed) -> None:
     path = tmp_path / "taken.mcap"
     path.write_bytes(b"")
-    recorder = RecorderProcess(path, session(), feed=feed)
+    recorder = RecorderProcess(path, feed=feed)
     with pytest.raises(RecordingError, match="already exists") as raised:
-        recorder.start()
+        recorder.start(session())
     assert "\n" not in str(raised.value)
 
 
 def loop_process(path: Path, done: Connection) -> None:
     """A loop process that records 200 rows, then dies without stopping its recorder."""
     feed = RecorderFeed()
-    recorder = RecorderProcess(path, session(), feed=feed)
-    recorder.start()
+    recorder = RecorderProcess(path, feed=feed)
+    recorder.start(session())
     push_rows(feed, 0, 200, paced=False)
     # Free the rings' and the queue's names (the recorder keeps its handles), then die at once.
     feed.close()

@@ -23,7 +23,8 @@ from rrd_helpers import Rrd
 from hilrig.errors import ViewError
 from hilrig.recording import EventKind, EventRecord, SessionInfo, inspect, load
 from hilrig.recording.samples import ContactState
-from hilrig.rig.recorder_feed import START_METHOD, RecorderFeed
+from hilrig.rig.child import START_METHOD
+from hilrig.rig.recorder_feed import RecorderFeed
 from hilrig.rig.recorder_process import RecorderProcess
 from hilrig.rig.records import AXIS_NAMES, FT_DTYPE, JOINT_DTYPE, TICK_DTYPE
 from hilrig.rig.session import SessionConfig, SessionResult, record_session
@@ -291,8 +292,8 @@ def test_a_recorder_whose_view_nobody_reads_records_every_row_and_stops_in_time(
     sent = rows(3000)
     q = spawn_queue(slots)
     with RecorderFeed() as feed:
-        recorder = RecorderProcess(tmp_path / "s.mcap", session_info(), feed=feed, view=q)
-        recorder.start()
+        recorder = RecorderProcess(tmp_path / "s.mcap", feed=feed, view=q)
+        recorder.start(session_info())
         for start in range(0, 3000, 100):
             push(feed, sent, start, start + 100)
             time.sleep(0.1)  # paced: about 1 kHz
