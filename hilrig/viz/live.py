@@ -13,19 +13,16 @@ goes on recording everything.
 from __future__ import annotations
 
 import contextlib
-import multiprocessing
 import os
 import queue
-import signal
 import socket
 import sys
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
-from multiprocessing.process import BaseProcess
 from multiprocessing.queues import Queue
-from typing import Any, NoReturn
+from typing import NoReturn
 
 import numpy as np
 import rerun as rr
@@ -33,7 +30,8 @@ from numpy.typing import NDArray
 
 from hilrig.errors import ViewError
 from hilrig.recording.samples import EventRecord
-from hilrig.rig.child import START_METHOD
+from hilrig.rig.child import CONTEXT, ChildProcess, report
+from hilrig.rig.live_port import LiveViewPort
 from hilrig.rig.records import AXIS_NAMES
 from hilrig.rig.rings import Rows
 from hilrig.rig.view_feed import VIEW_RATE_HZ, ViewBatch, ViewCounts
@@ -253,7 +251,7 @@ class _LiveJob:
     parent_pid: int
 
 
-class LiveView:
+class LiveView(LiveViewPort):
     """The session's end of a live view: the bounded queue the recorder forwards batches to
     (:attr:`queue`) and the viewer-feed process that streams them to ``sink``.
 
@@ -275,8 +273,7 @@ class LiveView:
         queue_batches: int = QUEUE_BATCHES,
     ) -> None:
         check_sink(sink)
-        self._context = multiprocessing.get_context(START_METHOD)
-        self.queue: Queue[ViewBatch | None] = self._context.Queue(queue_batches)
+        self._queue: Queue[ViewBatch | None] = CONTEXT.Queue(queue_batches)
         self.rate_hz = rate_hz
         self._job = _LiveJob(
             sink,
@@ -286,74 +283,58 @@ class LiveView:
             rate_hz,
             loop_rate_hz,
             urdf,
-            self.queue,
+            self._queue,
             os.getpid(),
         )
-        self._process: BaseProcess | None = None
-        self._report: Connection | None = None
+        self._child = ChildProcess("hilrig-live-view", "the live view", ViewError)
         self._problem = ""
+
+    @property
+    def queue(self) -> Queue[ViewBatch | None]:
+        """Where the recorder puts its batches (bounded: a full queue drops a batch)."""
+        return self._queue
 
     def start(self, *, timeout_s: float = START_S) -> None:
         """Spawn the viewer feed and wait until its stream is open or it gave up."""
-        self._report, report = self._context.Pipe(duplex=False)
-        process = self._context.Process(
-            target=_serve, args=(self._job, report), name="hilrig-live-view", daemon=True
-        )
-        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})  # as the recorder's
+        with _rerun_quiet():
+            self._child.start(_serve, (self._job,))
         try:
-            with _rerun_quiet():
-                process.start()
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
-        self._process = process
-        report.close()
-        if not self._report.poll(timeout_s):
-            self._problem = f"the live view did not start within {timeout_s:g} s"
-            self._end_process()
+            self._child.wait_report("ready", timeout_s)
+        except ViewError as err:
+            self._problem = str(err)
 
     def stop(self, counts: ViewCounts | None, *, timeout_s: float = FINISH_S) -> LiveReport:
         """End the feed (waiting up to ``timeout_s`` for its last flush) and report, with the
         recorder's ``counts`` (None if the recorder did not report)."""
         counts = counts or ViewCounts(error="the recorder did not report on the view")
         shown, problem = 0, self._problem
-        process = self._process
-        if process is not None and not problem:
+        if self._child.started and not problem:
             with contextlib.suppress(Exception):  # the recorder's marker may be lost
-                self.queue.put_nowait(None)
-            process.join(timeout_s)
-            if process.is_alive():
+                self._queue.put_nowait(None)
+            if not self._child.stop(timeout_s):
                 problem = f"the live view did not finish within {timeout_s:g} s; stopped it"
             done = self._done()
             if done is not None:
                 shown, problem = done[0], problem or done[1]
             elif not problem:
-                problem = f"the live view exited with code {process.exitcode}"
+                problem = f"the live view exited with code {self._child.exitcode}"
         self.close()
         return LiveReport(counts.sent, counts.dropped, shown, problem or counts.error)
 
     def close(self) -> None:
         """Stop the feed if it still runs; release the queue (never waiting on it)."""
-        self._end_process()
-        self.queue.close()
-        self.queue.cancel_join_thread()
-        if self._report is not None:
-            self._report.close()
-            self._report = None
-
-    def _end_process(self) -> None:
-        if self._process is not None and self._process.is_alive():
-            self._process.kill()
-            self._process.join()
+        self._child.close()
+        self._queue.close()
+        self._queue.cancel_join_thread()
 
     def _done(self) -> tuple[int, str] | None:
         """The feed's final report (batches shown, problem), if it sent one."""
-        done = None
-        report = self._report
-        with contextlib.suppress(EOFError, OSError):
-            while report is not None and report.poll(0):
-                kind, value = report.recv()
-                if kind == "done":
-                    done = value
+        if not self._child.poll(0):
+            return None
+        try:
+            done: tuple[int, str] = self._child.receive("done")
+        except ViewError:
+            return None
         return done
 
 
@@ -374,11 +355,9 @@ def _rerun_quiet() -> Iterator[None]:
 # -- the viewer-feed process ---------------------------------------------------------------------
 
 
-def _serve(job: _LiveJob, report: Connection) -> None:
+def _serve(conn: Connection, job: _LiveJob) -> None:
     """The viewer-feed process: open the stream, log every batch until the end marker or the
     parent's death, finish the stream and report. A problem is said once and ends the feed."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the loop's
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     with contextlib.suppress(OSError):
         os.nice(NICENESS)
     try:
@@ -393,9 +372,9 @@ def _serve(job: _LiveJob, report: Connection) -> None:
             urdf=job.urdf,
         )
     except Exception as err:  # a viewer problem, whatever it is, must not reach the session
-        _send(report, "ready", None)
-        _give_up(report, 0, _reason(err))
-    _send(report, "ready", None)
+        report(conn, "ready")
+        _give_up(conn, 0, _reason(err))
+    report(conn, "ready")
     problem = _feed(job, live)
     if not problem:
         try:
@@ -404,8 +383,8 @@ def _serve(job: _LiveJob, report: Connection) -> None:
         except Exception as err:
             problem = f"the viewer did not take the last data: {_reason(err)}"
     if problem:
-        _give_up(report, live.batches, problem)
-    _send(report, "done", (live.batches, ""))
+        _give_up(conn, live.batches, problem)
+    report(conn, "done", (live.batches, ""))
 
 
 def _feed(job: _LiveJob, live: LiveLogger) -> str:
@@ -446,17 +425,12 @@ def _reason(err: BaseException) -> str:
     return str(err) if isinstance(err, ViewError) else f"{type(err).__name__}: {err}"
 
 
-def _give_up(report: Connection, shown: int, problem: str) -> NoReturn:
+def _give_up(conn: Connection, shown: int, problem: str) -> NoReturn:
     """Say ``problem`` once on stderr and to the session, then leave at once: Rerun would wait
     up to 5 s more for a viewer that is not there."""
     line = f"hilrig: live view: {problem}; the session goes on and records everything\n"
     with contextlib.suppress(OSError, ValueError):
         sys.stderr.write(("\r\033[K" if sys.stderr.isatty() else "") + line)
         sys.stderr.flush()
-    _send(report, "done", (shown, problem))
+    report(conn, "done", (shown, problem))
     os._exit(0)
-
-
-def _send(report: Connection, kind: str, value: Any) -> None:
-    with contextlib.suppress(OSError):  # the session may be gone: nobody needs to know then
-        report.send((kind, value))
