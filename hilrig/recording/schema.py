@@ -47,16 +47,49 @@ TOPICS: Mapping[str, MessageType] = {
 }
 
 JOINT_ARRAYS = ("position", "velocity", "effort")
-CONTROLLER_ARRAYS = (
-    "force",
-    "offset",
-    "offset_rate",
-    "damping",
-    "stiffness",
-    "chi",
-    "zeta",
-    "contact_state",
+JOINT_NAMES = ("joint1", "joint2", "joint3", "joint4", "joint5", "joint6")
+AXIS_NAMES = ("x", "y", "z", *JOINT_NAMES)
+AXES = len(AXIS_NAMES)  # the controller's axes: x, y, z (base frame), then the joints
+
+
+@dataclass(frozen=True)
+class TickField:
+    """One field of the loop's tick row: numpy scalar ``kind``, ``size`` values (0: a scalar),
+    ``unit`` ("x,y,z|joints" where the Cartesian axes and the joints differ), and ``state``:
+    the ``hilrig_msgs/msg/ControllerState`` array it fills ("" for none)."""
+
+    name: str
+    kind: str
+    size: int
+    unit: str
+    state: str = ""
+
+
+#: The tick row, the one definition: the rig builds its ring dtype from it and the recorder
+#: reads the fields by name. Per-axis fields have ``AXES`` values, in ``AXIS_NAMES`` order.
+TICK_FIELDS = (
+    TickField("t_ns", "int64", 0, "ns"),  # the tick's start (after its deadline), host monotonic
+    TickField("tick", "int64", 0, "1"),
+    TickField("force", "float64", AXES, "N|N*m", state="force"),  # compensated controller input
+    TickField("moment", "float64", 3, "N*m"),  # compensated wrist moment, base frame
+    TickField("offset", "float64", AXES, "m|rad", state="offset"),  # e
+    TickField("offset_rate", "float64", AXES, "m/s|rad/s", state="offset_rate"),  # e'
+    TickField("damping", "float64", AXES, "N*s/m|N*m*s/rad", state="damping"),
+    TickField("stiffness", "float64", AXES, "N/m|N*m/rad", state="stiffness"),
+    TickField("chi", "float64", AXES, "1", state="chi"),
+    TickField("zeta", "float64", AXES, "1", state="zeta"),
+    TickField("contact", "int8", AXES, "ContactState", state="contact_state"),
+    TickField("desired_position", "float64", 3, "m"),  # X_d, base frame
+    TickField("desired_orientation", "float64", 4, "1"),  # X_d, quaternion x y z w
+    TickField("commanded_q", "float64", len(JOINT_NAMES), "rad"),  # the joint targets sent
+    TickField("period_ns", "int64", 0, "ns"),  # since the previous tick's start
+    TickField("compute_ns", "int64", 0, "ns"),  # work of this tick
+    TickField("lateness_ns", "int64", 0, "ns"),  # start - deadline
+    TickField("overruns", "int64", 0, "1"),  # ticks so far whose work ran past the next deadline
+    TickField("queue_drops", "int64", 0, "1"),  # rows the recorder rings refused so far
 )
+#: The ControllerState arrays, one value per axis, in the tick row's (and the message's) order.
+CONTROLLER_ARRAYS = tuple(f.state for f in TICK_FIELDS if f.state)
 
 #: rosbag2's QoS of a publisher with the ROS 2 default profile (reliable, volatile, keep last
 #: 10), written with numeric policies: every rosbag2 since Foxy reads these (see the
@@ -136,10 +169,6 @@ class ChannelSpec:
             "hilrig.publish_time": "device_time" if self.device_clock else "log_time",
             "hilrig.sequence": "device_sequence" if self.device_clock else "channel_counter",
         }
-
-
-JOINT_NAMES = ("joint1", "joint2", "joint3", "joint4", "joint5", "joint6")
-AXIS_NAMES = ("x", "y", "z", *JOINT_NAMES)
 
 
 def default_channels(

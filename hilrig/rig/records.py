@@ -10,11 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from hilrig.recording.schema import AXIS_NAMES, JOINT_NAMES
+from hilrig.recording.schema import AXES, AXIS_NAMES, JOINT_NAMES, TICK_FIELDS
 
 __all__ = ["AXES", "AXIS_NAMES", "FT_DTYPE", "JOINTS", "JOINT_DTYPE", "JOINT_NAMES", "TICK_DTYPE"]
 
-AXES = len(AXIS_NAMES)  # x, y, z, joint1..joint6: the names every topic uses
 JOINTS = len(JOINT_NAMES)
 
 # One wrist (or base) F/T sample as measured: sensor frame, N and N*m.
@@ -38,27 +37,8 @@ JOINT_DTYPE = np.dtype(
     ]
 )
 
-# One control tick.
+# One control tick: the fields of TICK_FIELDS (names, units, which ControllerState array each
+# fills), in that order.
 TICK_DTYPE = np.dtype(
-    [
-        ("t_ns", np.int64),  # the tick's start (after its deadline)
-        ("tick", np.int64),
-        ("force", np.float64, (AXES,)),  # the compensated controller input, N and N*m
-        ("moment", np.float64, (3,)),  # the compensated wrist moment, base frame, N*m
-        ("offset", np.float64, (AXES,)),  # e, m and rad
-        ("offset_rate", np.float64, (AXES,)),  # e', m/s and rad/s
-        ("damping", np.float64, (AXES,)),
-        ("stiffness", np.float64, (AXES,)),
-        ("chi", np.float64, (AXES,)),
-        ("zeta", np.float64, (AXES,)),
-        ("contact", np.int8, (AXES,)),  # ContactState codes
-        ("desired_position", np.float64, (3,)),  # X_d, base frame, m
-        ("desired_orientation", np.float64, (4,)),  # X_d, quaternion x y z w
-        ("commanded_q", np.float64, (JOINTS,)),  # the joint targets sent, rad
-        ("period_ns", np.int64),  # since the previous tick's start
-        ("compute_ns", np.int64),  # work of this tick
-        ("lateness_ns", np.int64),  # start - deadline
-        ("overruns", np.int64),  # ticks so far whose work ran past the next deadline
-        ("queue_drops", np.int64),  # rows the recorder rings refused so far
-    ]
+    [(f.name, f.kind, (f.size,)) if f.size else (f.name, f.kind) for f in TICK_FIELDS]
 )

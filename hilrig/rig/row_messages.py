@@ -4,6 +4,7 @@ recording's typed samples, each with its topic."""
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import fields
 
 from hilrig.recording import (
     ControllerSample,
@@ -13,6 +14,7 @@ from hilrig.recording import (
     Sample,
     WrenchSample,
 )
+from hilrig.recording.schema import TICK_FIELDS
 from hilrig.rig.rings import Rows
 
 FT_TOPIC = "/ft/wrist"
@@ -45,37 +47,32 @@ def joint_samples(rows: Rows) -> Messages:
         yield JOINT_TOPIC, JointSample(t_ns, q, qd, tau, device_t_ns=device_t_ns, device_seq=seq)
 
 
-_TICK_COLUMNS = (
-    "t_ns",
-    "force",
-    "moment",
-    "offset",
-    "offset_rate",
-    "damping",
-    "stiffness",
-    "chi",
-    "zeta",
-    "contact",
-    "desired_position",
-    "desired_orientation",
-    "commanded_q",
-    "tick",
-    "period_ns",
-    "compute_ns",
-    "lateness_ns",
-    "overruns",
-    "queue_drops",
-)
+_STATE_COLUMNS = tuple((f.name, f.state) for f in TICK_FIELDS if f.state)
+_TIMING_COLUMNS = tuple(f.name for f in fields(LoopTiming) if f.name != "t_ns")
 
 
 def tick_samples(rows: Rows) -> Messages:
     """Per TICK_DTYPE row, in this order: ``/controller/input`` (the compensated wrist wrench
     in the base frame, N and N*m), ``/controller/state`` (all axes), ``/trajectory/desired``,
-    ``/trajectory/commanded`` (positions only) and ``/diagnostics/loop``."""
-    columns = zip(*(rows[c].tolist() for c in _TICK_COLUMNS), strict=True)
-    for t, f, m, e, ed, b, k, chi, zeta, contact, p, o, q, *timing in columns:
+    ``/trajectory/commanded`` (positions only) and ``/diagnostics/loop``. Fields are read by
+    name: the state's from :data:`~hilrig.recording.schema.TICK_FIELDS`, the timing's as
+    :class:`~hilrig.recording.LoopTiming` names them."""
+    column = {name: rows[name].tolist() for name in rows.dtype.names or ()}
+    state = [(array, column[name]) for name, array in _STATE_COLUMNS]
+    timing = [(name, column[name]) for name in _TIMING_COLUMNS]
+    pose = zip(column["desired_position"], column["desired_orientation"], strict=True)
+    for k, (t, f, m, (p, o), q) in enumerate(
+        zip(
+            column["t_ns"],
+            column["force"],
+            column["moment"],
+            pose,
+            column["commanded_q"],
+            strict=True,
+        )
+    ):
         yield INPUT_TOPIC, WrenchSample(t, (f[0], f[1], f[2]), (m[0], m[1], m[2]))
-        yield STATE_TOPIC, ControllerSample(t, f, e, ed, b, k, chi, zeta, contact)
+        yield STATE_TOPIC, ControllerSample(t, **{array: values[k] for array, values in state})
         yield DESIRED_TOPIC, PoseSample(t, (p[0], p[1], p[2]), (o[0], o[1], o[2], o[3]))
         yield COMMANDED_TOPIC, JointSample(t, q)
-        yield LOOP_TOPIC, LoopTiming(t, *timing)
+        yield LOOP_TOPIC, LoopTiming(t, **{name: values[k] for name, values in timing})
