@@ -11,7 +11,6 @@ call that kernel themselves: ``run_compiled(*controller.kernel_arrays()[:7])``.
 
 from hilrig.control.controller import (
     AdmittanceController,
-    ContactState,
     KernelArrays,
     SimResult,
     gains,
@@ -33,6 +32,9 @@ from hilrig.control.params import (
 from hilrig.control.presets import PAPER_DT_S, PRESETS, preset
 from hilrig.control.stability import StabilityReport, stability_report
 from hilrig.errors import NonFiniteForceError, ParameterError
+
+# The contact state codes (``SimResult.contact``) are the recording's; the kernel emits them.
+from hilrig.recording.samples import ContactState
 
 __all__ = [
     "PAPER_DT_S",

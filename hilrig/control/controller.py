@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from enum import IntEnum
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -31,15 +30,6 @@ from hilrig.control.presets import preset
 from hilrig.errors import NonFiniteForceError, ParameterError
 
 ParamsLike = str | AdmittanceParams | Mapping[str, Any]
-
-
-class ContactState(IntEnum):
-    """Algorithm 2 contact state of an axis group, as stored in ``SimResult.contact``."""
-
-    FREE = K.FREE
-    CONTACT = K.CONTACT
-    HOLDING = K.HOLDING
-    RECOVERING = K.RECOVERING
 
 
 def resolve_params(params: ParamsLike) -> AdmittanceParams:

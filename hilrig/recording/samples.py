@@ -51,7 +51,8 @@ class PoseSample:
 
 
 class ContactState(enum.IntEnum):
-    """Algorithm 2 contact state of an axis group (the ``contact_state`` codes on disk)."""
+    """Algorithm 2 contact state of an axis group: the ``contact_state`` codes on disk, and
+    those of the controller (:mod:`hilrig.control` re-exports this enum; its kernel emits them)."""
 
     FREE = 0
     CONTACT = 1
