@@ -100,6 +100,13 @@ class RobotModel:
         self._upper_rad = limits.upper_rad()
         self.joint_names: tuple[str, ...] = tuple(self._model.names[1:])
 
+    def tcp_in_joint(self) -> tuple[int, NDArray[np.float64]]:
+        """The joint the TCP frame is attached to (pinocchio index, 1..6) and the TCP's placement
+        in that joint's frame (a new 4x4, m)."""
+        frame = self._model.frames[self._tip_id]
+        placement: NDArray[np.float64] = frame.placement.homogeneous.copy()
+        return int(frame.parentJoint), placement
+
     def fk(self, q_rad: NDArray[np.float64]) -> NDArray[np.float64]:
         """Pose of the TCP in the base frame at joints ``q_rad`` (6,), as a new 4x4 matrix (m)."""
         self._check(q_rad, "fk")
