@@ -18,8 +18,7 @@ import numpy as np
 
 from benchmarks.harness import Result, quantiles_us
 from hilrig.recording import SessionInfo
-from hilrig.rig.recorder_feed import RecorderFeed
-from hilrig.rig.recorder_process import RecorderProcess
+from hilrig.rig import RecorderFeed, RecorderProcess
 
 DURATION_S = 10.0
 TICK_NS = 1_000_000

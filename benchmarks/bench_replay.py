@@ -36,7 +36,7 @@ from hilrig.recording import (
     default_channels,
 )
 from hilrig.replay.outputs import write_parquet
-from hilrig.rig.loop import LoopConfig
+from hilrig.rig import LoopConfig
 
 SUITE = "replay"
 DURATION_S = 3600

@@ -24,7 +24,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from benchmarks.harness import Result
-from hilrig.rig.session import SessionConfig, SessionResult, record_session
+from hilrig.rig import SessionConfig, SessionResult, record_session
 from hilrig.viz.sinks import Sink, SinkKind, grpc_url, rerun_binary
 
 DURATION_S = 30.0

@@ -39,8 +39,8 @@ from hilrig.recording import (
     WrenchSample,
     default_channels,
 )
-from hilrig.rig.loop import LoopConfig
-from hilrig.rig.records import AXIS_NAMES as AXES
+from hilrig.rig import AXIS_NAMES as AXES
+from hilrig.rig import LoopConfig
 from hilrig.robot import RobotModel
 from hilrig.viz import save_rrd, scene_from_session
 

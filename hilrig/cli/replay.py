@@ -29,9 +29,7 @@ from hilrig.errors import ReplayError
 from hilrig.replay import ForceTrace, Run, load_trace, parse_specs, peak_offsets, replay
 from hilrig.replay.outputs import MCAP_SUFFIXES, PARQUET_SUFFIXES, write_mcap, write_parquet
 from hilrig.replay.verify import summary_lines, verify
-from hilrig.rig.loop import LoopConfig
-from hilrig.rig.session import SessionConfig, record_session
-from hilrig.rig.virtual import VirtualInput
+from hilrig.rig import LoopConfig, SessionConfig, VirtualInput, record_session
 
 #: Inputs at least this large get a progress bar.
 LONG_INPUT_BYTES = 16 << 20

@@ -30,11 +30,16 @@ from numpy.typing import NDArray
 
 from hilrig.errors import ViewError
 from hilrig.recording.samples import EventRecord
-from hilrig.rig.child import CONTEXT, ChildProcess, report
-from hilrig.rig.live_port import LiveViewPort
-from hilrig.rig.records import AXIS_NAMES
-from hilrig.rig.rings import Rows
-from hilrig.rig.view_feed import VIEW_RATE_HZ, ViewBatch, ViewCounts
+from hilrig.rig import (
+    AXIS_NAMES,
+    VIEW_RATE_HZ,
+    ChildProcess,
+    LiveViewPort,
+    Rows,
+    ViewBatch,
+    ViewCounts,
+)
+from hilrig.rig.child import CONTEXT, report
 from hilrig.robot.model import RobotModel
 from hilrig.viz import paths, style
 from hilrig.viz.blueprint import blueprint

@@ -10,7 +10,7 @@ import numpy as np
 from hilrig.recording import ControllerSample, LoopTiming, MessageType
 from hilrig.recording.msgdef import packaged_message
 from hilrig.recording.schema import AXES, CONTROLLER_ARRAYS, TICK_FIELDS
-from hilrig.rig.records import TICK_DTYPE
+from hilrig.rig import TICK_DTYPE
 from hilrig.rig.row_messages import LOOP_TOPIC, STATE_TOPIC, tick_samples
 
 # The names the loop writes: they must not change under it.

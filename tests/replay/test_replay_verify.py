@@ -17,7 +17,7 @@ from replay_helpers import (
 from hilrig.control import Law
 from hilrig.replay import ReplayError
 from hilrig.replay.verify import summary_lines, verify
-from hilrig.rig.session import SessionConfig, record_session
+from hilrig.rig import SessionConfig, record_session
 
 
 def test_a_real_recording_replays_with_zero_difference() -> None:

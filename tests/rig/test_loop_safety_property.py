@@ -19,10 +19,14 @@ from hilrig.drivers.joint_targets import WriterStats
 from hilrig.drivers.joint_targets_map import Mode
 from hilrig.drivers.robot_state import ReceivedState
 from hilrig.drivers.robot_state_codec import RobotState, RobotStatus
-from hilrig.rig.loop import ControlLoop, LoopConfig
-from hilrig.rig.safety import SafetyClamp, SafetyConfig
-from hilrig.rig.timing import DeadlineTimer
-from hilrig.rig.trajectory import make_trajectory
+from hilrig.rig import (
+    ControlLoop,
+    DeadlineTimer,
+    LoopConfig,
+    SafetyClamp,
+    SafetyConfig,
+    make_trajectory,
+)
 from hilrig.robot import RobotModel
 
 PERIOD_NS = 1_000_000

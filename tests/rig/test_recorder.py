@@ -24,9 +24,7 @@ from mcap_ros2.decoder import DecoderFactory
 
 from hilrig.errors import RecordingError
 from hilrig.recording import EventKind, EventRecord, SessionInfo, inspect, load, recover
-from hilrig.rig.recorder_feed import RecorderFeed
-from hilrig.rig.recorder_process import RecorderProcess
-from hilrig.rig.records import AXIS_NAMES
+from hilrig.rig import AXIS_NAMES, RecorderFeed, RecorderProcess
 
 START_MONO_NS = 10_000_000_000
 TICK_NS = 1_000_000

@@ -14,8 +14,7 @@ from test_recorder import ROW_TOPICS, check_rows, push_rows, session
 
 from hilrig.errors import RecordingError
 from hilrig.recording import load
-from hilrig.rig.recorder_feed import RecorderFeed
-from hilrig.rig.recorder_process import RecorderProcess
+from hilrig.rig import RecorderFeed, RecorderProcess
 
 
 def test_rows_committed_before_begin_are_all_written(tmp_path: Path) -> None:

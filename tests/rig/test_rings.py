@@ -14,8 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hilrig.errors import RecordingError
-from hilrig.rig.records import TICK_DTYPE
-from hilrig.rig.rings import Ring, RingSpec, Rows
+from hilrig.rig import TICK_DTYPE, Rows
+from hilrig.rig.rings import Ring, RingSpec
 
 ROW = np.dtype([("id", np.int64), ("value", np.float64, (3,))])
 

@@ -13,10 +13,14 @@ import pytest
 from hilrig.control import combine, preset, simulate
 from hilrig.recording import load, recover
 from hilrig.recording.samples import EventKind
-from hilrig.rig.loop import ControlLoop
-from hilrig.rig.recorder_process import RecorderProcess
-from hilrig.rig.rig_process import RigProcess
-from hilrig.rig.session import SessionConfig, SessionResult, record_session
+from hilrig.rig import (
+    ControlLoop,
+    RecorderProcess,
+    RigProcess,
+    SessionConfig,
+    SessionResult,
+    record_session,
+)
 
 TOPICS_AT_1KHZ = (
     "/ft/wrist",

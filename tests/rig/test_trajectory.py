@@ -10,15 +10,8 @@ from numpy.typing import NDArray
 
 from hilrig.drivers.emulated.rig import HOME_Q_RAD
 from hilrig.errors import ParameterError
-from hilrig.rig.safety import SafetyClamp, SafetyConfig
-from hilrig.rig.trajectory import (
-    TRAJECTORIES,
-    Circle,
-    Trajectory,
-    make_trajectory,
-    minimum_jerk,
-    ramped_time_s,
-)
+from hilrig.rig import SafetyClamp, SafetyConfig, Trajectory, make_trajectory
+from hilrig.rig.trajectory import TRAJECTORIES, Circle, minimum_jerk, ramped_time_s
 from hilrig.robot import RobotModel
 
 HOME = np.array(HOME_Q_RAD)

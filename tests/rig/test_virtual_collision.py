@@ -9,8 +9,7 @@ import pytest
 from hilrig.errors import HilrigError
 from hilrig.recording import load
 from hilrig.recording.samples import EventKind
-from hilrig.rig.session import SessionConfig, record_session
-from hilrig.rig.virtual import VirtualInput
+from hilrig.rig import SessionConfig, VirtualInput, record_session
 
 
 def test_rows_play_at_their_times_and_only_then() -> None:

@@ -23,12 +23,21 @@ from rrd_helpers import Rrd
 from hilrig.errors import ViewError
 from hilrig.recording import EventKind, EventRecord, SessionInfo, inspect, load
 from hilrig.recording.samples import ContactState
-from hilrig.rig.child import START_METHOD
-from hilrig.rig.recorder_feed import RecorderFeed
-from hilrig.rig.recorder_process import RecorderProcess
-from hilrig.rig.records import AXIS_NAMES, FT_DTYPE, JOINT_DTYPE, TICK_DTYPE
-from hilrig.rig.session import SessionConfig, SessionResult, record_session
-from hilrig.rig.view_feed import ViewBatch, ViewForwarder, first_per_period
+from hilrig.rig import (
+    AXIS_NAMES,
+    FT_DTYPE,
+    JOINT_DTYPE,
+    START_METHOD,
+    TICK_DTYPE,
+    RecorderFeed,
+    RecorderProcess,
+    SessionConfig,
+    SessionResult,
+    ViewBatch,
+    ViewForwarder,
+    record_session,
+)
+from hilrig.rig.view_feed import first_per_period
 from hilrig.robot.model import RobotModel
 from hilrig.viz import paths
 from hilrig.viz.live import LiveView, check_sink, event_line
