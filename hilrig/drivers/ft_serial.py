@@ -1,26 +1,27 @@
-"""The Kunwei F/T sensor over a serial port (pyserial): a reader thread keeping the newest sample.
+"""The Kunwei F/T sensor over a serial port (pyserial), polled from the caller's loop.
 
-``connect()`` opens the port (460800 8N1 by default), sends the start command and starts a
-daemon reader thread; ``latest()`` returns the newest :class:`~hilrig.drivers.ft_sensor.FtSample`
-without blocking and ``drain()`` every sample since the last drain (for recording). No exception
-escapes the thread: each is counted and kept in ``status().last_error``; on a lost link the
-thread reopens the port with exponential backoff and sends the start command again, and after a
-silence of ``restart_after_s`` it re-sends the start command (a sensor that rebooted waits for
-it). ``close()`` sends the stop command and joins the thread.
+``connect()`` opens the port (460800 8N1 by default), sends the start command and waits for the
+first frame (blocking, not for the real-time loop). Then the loop selects on ``fileno()`` and
+calls ``poll(now_ns)``: one non-blocking read of everything waiting, framed by
+:class:`~hilrig.drivers.ft_sensor.KunweiFramer`, returned as new samples stamped ``now_ns``
+(those read while connecting come first in the first poll). ``poll`` never raises: an error is
+counted and kept in ``status().last_error``, the port closed and reopened with backoff (and the
+start command sent again); after a silence of ``restart_after_s`` the start command is re-sent
+(a sensor that rebooted waits for it). ``close()`` sends the stop command. No thread.
 """
 
 from __future__ import annotations
 
 import contextlib
-import threading
+import os
 import time
-from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 import serial
 from numpy.typing import NDArray
 
-from hilrig.drivers.base import LinkStatus, Reader
+from hilrig.drivers.base import LinkStatus, RateMeter, Reader, error_text, wait_readable
 from hilrig.drivers.ft_sensor import (
     START_COMMAND,
     STOP_COMMAND,
@@ -29,11 +30,11 @@ from hilrig.drivers.ft_sensor import (
     FtSample,
     KunweiFramer,
 )
+from hilrig.drivers.reconnect import Backoff
 from hilrig.errors import LinkError
 
 DEFAULT_BAUDRATE = 460800
-HISTORY = 4096  # samples kept for drain(): 4 s at 1 kHz
-_RATE_WINDOW_NS = 500_000_000
+READ_BYTES = 65536  # per poll: 2340 frames, far more than arrive between two 1 kHz ticks
 
 
 class FtSerial(Reader[FtSample]):
@@ -45,7 +46,6 @@ class FtSerial(Reader[FtSample]):
         *,
         baudrate: int = DEFAULT_BAUDRATE,
         framer_config: FramerConfig | None = None,
-        read_timeout_s: float = 0.02,
         stall_after_s: float = 0.05,
         restart_after_s: float = 0.5,
         backoff_s: tuple[float, float] = (0.05, 1.0),
@@ -53,94 +53,94 @@ class FtSerial(Reader[FtSample]):
         self.port = port
         self._baudrate = baudrate
         self._framer = KunweiFramer(framer_config)
-        self._read_timeout_s = read_timeout_s
         self._stall_after_ns = round(stall_after_s * 1e9)
         self._restart_after_ns = round(restart_after_s * 1e9)
-        self._backoff_s = backoff_s
+        self._backoff = Backoff(backoff_s)
         self._serial: serial.Serial | None = None
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
-        self._first_sample = threading.Event()
+        self._fd = -1
+        self._wanted = False  # between connect() and close(): poll reopens a lost link
+        self._unreturned: list[FtSample] = []  # read by connect(), returned by the next poll
+        self._heard_ns = 0  # the last sample, or the last start command sent
         self._latest: FtSample | None = None
-        self._history: deque[FtSample] = deque(maxlen=HISTORY)
         self._samples = 0
-        self._rate_hz = 0.0
-        self._rate_t0_ns = 0
-        self._rate_n0 = 0
+        self._rate = RateMeter()
         self._stalled = False
         self._stalls = 0
         self._reconnects = 0
         self._errors = 0
         self._last_error = ""
 
-    # -- Reader ------------------------------------------------------------------------------
-
     def connect(self, *, first_sample_timeout_s: float | None = 1.0) -> None:
-        """Open the port, send start, start the reader; wait for the first frame if asked.
+        """Open the port and send start; wait for the first frame unless the timeout is None.
 
         Raises :class:`~hilrig.errors.LinkError` if the port cannot be opened or no valid frame
-        arrives within ``first_sample_timeout_s`` (None: do not wait).
+        arrives within ``first_sample_timeout_s``.
         """
         if self.is_connected:
             return
         try:
-            self._serial = self._open()
+            self._open(time.monotonic_ns())
         except (serial.SerialException, OSError) as err:
             raise LinkError(f"F/T sensor {self.port}: cannot open: {err}") from err
-        self._stop.clear()
-        self._first_sample.clear()
-        self._thread = threading.Thread(target=self._run, daemon=True, name=f"ft {self.port}")
-        self._thread.start()
-        if first_sample_timeout_s is not None and not self._first_sample.wait(
-            first_sample_timeout_s
-        ):
-            self.close()
-            raise LinkError(
-                f"F/T sensor {self.port}: no valid frame within {first_sample_timeout_s} s "
-                f"of the start command ({self._framer.stats.bytes_in} bytes received)"
-            )
+        self._wanted = True
+        self._backoff.succeeded()
+        if first_sample_timeout_s is None:
+            return
+        deadline_ns = time.monotonic_ns() + round(first_sample_timeout_s * 1e9)
+        while not self._unreturned:
+            left_ns = deadline_ns - time.monotonic_ns()
+            if left_ns <= 0:
+                self.close()
+                raise LinkError(
+                    f"F/T sensor {self.port}: no valid frame within {first_sample_timeout_s} s "
+                    f"of the start command ({self._framer.stats.bytes_in} bytes received)"
+                )
+            wait_readable(self._fd, left_ns / 1e9)
+            self._unreturned = self.poll(time.monotonic_ns())
 
     def close(self) -> None:
-        """Stop the reader (joined), send the stop command and close the port. Idempotent."""
-        self._stop.set()
-        port = self._serial
-        if port is not None:
-            # the reader may have closed it already: then there is nothing to wake
-            with contextlib.suppress(serial.SerialException, OSError, TypeError):
-                port.cancel_read()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
-            self._thread = None
-        port = self._serial
-        self._serial = None
-        if port is not None:
-            # if the link is gone the sensor cannot hear us anyway
-            with contextlib.suppress(serial.SerialException, OSError):
-                port.write(STOP_COMMAND)
-            port.close()
+        """Send the stop command and close the port; poll no longer reopens it. Idempotent."""
+        self._wanted = False
+        self._unreturned = []
+        if self._serial is not None:
+            with contextlib.suppress(OSError):  # if the link is gone the sensor cannot hear us
+                os.write(self._fd, STOP_COMMAND)
+            self._drop()
 
     @property
     def is_connected(self) -> bool:
-        """True while the reader runs and the port is open."""
-        return self._thread is not None and self._thread.is_alive() and self._serial is not None
+        """True while the port is open."""
+        return self._serial is not None
+
+    def fileno(self) -> int:
+        """The port's descriptor, -1 while it is closed."""
+        return self._fd
+
+    def poll(self, now_ns: int) -> list[FtSample]:
+        """The samples read now (stamped ``now_ns``), oldest first; never blocks, never raises."""
+        try:
+            samples = self._pump(now_ns)
+        except Exception as err:  # whatever happens (even a bug), the caller's loop carries on
+            self._errors += 1
+            self._last_error = error_text(err)
+            self._drop()
+            self._backoff.failed(now_ns)
+            samples = []
+        if self._unreturned:
+            samples, self._unreturned = self._unreturned + samples, []
+        return samples
 
     def latest(self) -> FtSample | None:
         return self._latest
 
-    def drain(self) -> list[FtSample]:
-        """Samples since the last drain, oldest first (at most the last ``HISTORY``)."""
-        history = self._history
-        return [history.popleft() for _ in range(len(history))]
-
     def status(self) -> LinkStatus:
         latest = self._latest
         age_ns = None if latest is None else time.monotonic_ns() - latest.t_ns
-        silent = age_ns is None or age_ns > 2 * _RATE_WINDOW_NS
         return LinkStatus(
             endpoint=self.port,
             connected=self.is_connected,
             samples=self._samples,
-            rate_hz=0.0 if silent else self._rate_hz,
+            rate_hz=self._rate.rate_hz(age_ns),
             age_ns=age_ns,
             stalls=self._stalls,
             reconnects=self._reconnects,
@@ -152,85 +152,77 @@ class FtSerial(Reader[FtSample]):
         """The framer's counters (frames, rejected, resyncs, bytes dropped) since construction."""
         return self._framer.stats
 
-    def average(self, duration_s: float = 0.1, *, timeout_s: float = 1.0) -> NDArray[np.float64]:
-        """Mean raw wrench (6,), N and N*m, over the next ``duration_s``: the reading to tare.
+    def average(
+        self,
+        duration_s: float = 0.1,
+        *,
+        timeout_s: float = 1.0,
+        on_sample: Callable[[FtSample], None] | None = None,
+    ) -> NDArray[np.float64]:
+        """Mean raw wrench (6,), N and N*m, of the samples polled over ``duration_s``: to tare.
 
-        Blocks; not for the real-time loop. Raises :class:`~hilrig.errors.LinkError` if no
-        sample arrives within ``max(duration_s, timeout_s)``.
+        Blocks; not for the real-time loop. Every sample read (from the first one a previous
+        ``connect`` kept) goes to ``on_sample`` too, so the caller can record it. Raises
+        :class:`~hilrig.errors.LinkError` if none arrives within ``max(duration_s, timeout_s)``.
         """
-        self.drain()
-        deadline = time.monotonic() + max(duration_s, timeout_s)
-        time.sleep(duration_s)
-        samples = self.drain()
-        while not samples and time.monotonic() < deadline:
-            time.sleep(0.005)
-            samples = self.drain()
-        if not samples:
+        start_ns = time.monotonic_ns()
+        end_ns = start_ns + round(duration_s * 1e9)
+        give_up_ns = start_ns + round(max(duration_s, timeout_s) * 1e9)
+        wrenches: list[tuple[float, ...]] = []
+        while True:
+            now_ns = time.monotonic_ns()
+            for sample in self.poll(now_ns):
+                wrenches.append(sample.wrench_in_sensor)
+                if on_sample is not None:
+                    on_sample(sample)
+            if now_ns >= (end_ns if wrenches else give_up_ns):
+                break
+            wait_readable(self._fd, ((end_ns if wrenches else give_up_ns) - now_ns) / 1e9)
+        if not wrenches:
             raise LinkError(f"F/T sensor {self.port}: no samples to average")
-        wrenches = np.array([s.wrench_in_sensor for s in samples], dtype=np.float64)
-        mean: NDArray[np.float64] = wrenches.mean(axis=0)
+        mean: NDArray[np.float64] = np.array(wrenches, dtype=np.float64).mean(axis=0)
         return mean
 
-    # -- the reader thread -------------------------------------------------------------------
+    # -- the link ----------------------------------------------------------------------------
 
-    def _open(self) -> serial.Serial:
-        port = serial.Serial(self.port, self._baudrate, timeout=self._read_timeout_s)
+    def _open(self, now_ns: int) -> None:
+        port = serial.Serial(self.port, self._baudrate, timeout=0)
+        self._serial, self._fd = port, port.fileno()
         self._framer.reset()
-        port.write(START_COMMAND)
-        return port
+        self._heard_ns = now_ns
+        os.write(self._fd, START_COMMAND)
 
-    def _run(self) -> None:
-        delay_s = self._backoff_s[0]
-        while not self._stop.is_set():
-            port = self._serial
-            try:
-                if port is None:
-                    port = self._serial = self._open()
-                    self._reconnects += 1
-                    delay_s = self._backoff_s[0]
-                self._pump(port)
-            except Exception as err:  # whatever happens (even a bug), the thread carries on
-                self._errors += 1
-                self._last_error = f"{type(err).__name__}: {err}"
-                if port is not None:
-                    self._serial = None
-                    with contextlib.suppress(Exception):  # a broken port may fail to close too
-                        port.close()
-                self._stop.wait(delay_s)
-                delay_s = min(2 * delay_s, self._backoff_s[1])
+    def _drop(self) -> None:
+        port, self._serial, self._fd = self._serial, None, -1
+        if port is not None:
+            with contextlib.suppress(Exception):  # a broken port may fail to close too
+                port.close()
 
-    def _pump(self, port: serial.Serial) -> None:
-        """Read and frame until stopped; raises on a lost link."""
-        framer = self._framer
-        silent_since_ns = time.monotonic_ns()
-        while not self._stop.is_set():
-            waiting = port.in_waiting
-            data = port.read(waiting if waiting else 1)
-            now = time.monotonic_ns()
-            samples = framer.feed(data, now) if data else None
-            if samples:
-                self._publish(samples, now)
-                silent_since_ns = now
-            elif now - silent_since_ns > self._restart_after_ns:
-                port.write(START_COMMAND)
-                silent_since_ns = now
-            latest = self._latest
-            if (
-                latest is not None
-                and not self._stalled
-                and now - latest.t_ns > self._stall_after_ns
-            ):
-                self._stalled = True
-                self._stalls += 1
-
-    def _publish(self, samples: list[FtSample], now: int) -> None:
-        self._history.extend(samples)
-        self._latest = samples[-1]
-        self._samples += len(samples)
-        self._stalled = False
-        if now - self._rate_t0_ns >= _RATE_WINDOW_NS:
-            if self._rate_t0_ns:
-                self._rate_hz = (self._samples - self._rate_n0) * 1e9 / (now - self._rate_t0_ns)
-            self._rate_t0_ns = now
-            self._rate_n0 = self._samples
-        self._first_sample.set()
+    def _pump(self, now_ns: int) -> list[FtSample]:
+        """Reopen the port when due, read and frame; raises on a lost link."""
+        if self._serial is None:
+            if not (self._wanted and self._backoff.due(now_ns)):
+                return []
+            self._open(now_ns)
+            self._backoff.succeeded()
+            self._reconnects += 1
+        try:  # a tty set for timeout 0 reads b"" when empty; a lost one raises (EIO)
+            data = os.read(self._fd, READ_BYTES)
+        except BlockingIOError:
+            data = b""
+        latest = self._latest
+        if latest is not None and not self._stalled and now_ns - latest.t_ns > self._stall_after_ns:
+            self._stalled = True
+            self._stalls += 1
+        samples = self._framer.feed(data, now_ns) if data else []
+        if samples:
+            self._latest = samples[-1]
+            self._samples += len(samples)
+            self._stalled = False
+            self._heard_ns = now_ns
+            self._rate.update(now_ns, self._samples)
+        elif now_ns - self._heard_ns > self._restart_after_ns:
+            with contextlib.suppress(BlockingIOError):  # a full output buffer: next time
+                os.write(self._fd, START_COMMAND)
+            self._heard_ns = now_ns
+        return samples
