@@ -1,30 +1,33 @@
-"""Robot joint state over TCP: a reader thread keeping the newest frame, reconnecting on loss.
+"""Robot joint state over TCP, polled from the caller's loop; reconnects on loss.
 
-Follows the driver shape of ``hilrig.drivers.base``: ``latest()`` never blocks and returns the
-newest decoded frame with its host receive time (time.monotonic_ns); ``status().age_ns`` tells
-how old it is, which the real-time loop compares with its limit to hold the robot on a lost
-link. The decoder is pluggable (``decoder_factory``) so a real controller's format can replace
-hilrig's. No exception escapes the thread: each is counted, the last kept in ``last_error``,
-and the link is reopened with backoff.
+Follows the driver shape of ``hilrig.drivers.base``: the loop selects on ``fileno()`` and calls
+``poll(now_ns)``, which takes everything waiting on the non-blocking socket (``recv_into`` a
+preallocated buffer, TCP_NODELAY) and returns the decoded frames stamped ``now_ns``;
+``latest()`` is the newest and ``status().age_ns`` tells how old it is, which the loop compares
+with its limit to hold the robot on a lost link. The decoder is pluggable (``decoder_factory``)
+so a real controller's format can replace hilrig's. ``poll`` never raises: each error is
+counted, the last kept in ``last_error``, and the link reopened with backoff. Connecting is
+non-blocking too (``connect_ex``, then writability checked by the next polls): no thread ever.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import os
+import select
 import socket
-import threading
 import time
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from hilrig.drivers.base import LinkStatus, Reader
+from hilrig.drivers.base import LinkStatus, RateMeter, Reader, error_text, wait_readable
+from hilrig.drivers.reconnect import Backoff
 from hilrig.drivers.robot_state_codec import DecoderStats, RobotState, RobotStateDecoder
 from hilrig.errors import LinkError
 
-HISTORY = 4096  # frames kept for drain(): 4 s at 1 kHz
-RATE_WINDOW_NS = 500_000_000
+RECV_BYTES = 65536  # per recv: 385 frames, far more than arrive between two 1 kHz ticks
 
 
 class StateDecoder(Protocol):
@@ -38,7 +41,7 @@ class StateDecoder(Protocol):
 
 @dataclass(frozen=True)
 class ReceivedState:
-    """A frame and the host monotonic time (ns) its last byte was received."""
+    """A frame and the host monotonic time (ns) of the poll that received its last byte."""
 
     t_ns: int
     state: RobotState
@@ -59,18 +62,19 @@ class RobotStateClient(Reader[ReceivedState]):
     ) -> None:
         self.endpoint = (host, port)
         self._decoder = decoder_factory()
-        self._connect_timeout_s = connect_timeout_s
+        self._connect_timeout_ns = round(connect_timeout_s * 1e9)
         self._stall_after_ns = round(stall_after_s * 1e9)
-        self._backoff_s = backoff_s
+        self._backoff = Backoff(backoff_s)
+        self._buffer = bytearray(RECV_BYTES)
+        self._view = memoryview(self._buffer)
+        self._sock: socket.socket | None = None  # connecting or connected
+        self._fd = -1  # the socket's once connected
+        self._connect_started_ns = 0
+        self._wanted = False  # between connect() and close(): poll reopens a lost link
+        self._linked_before = False
+        self._unreturned: list[ReceivedState] = []  # read by connect(), returned by next poll
         self._latest: ReceivedState | None = None
-        self._history: deque[ReceivedState] = deque(maxlen=HISTORY)
-        self._first_frame = threading.Event()
-        self._stop = threading.Event()
-        self._sock: socket.socket | None = None
-        self._thread: threading.Thread | None = None
-        self._linked = False
-        self._rate_hz = 0.0
-        self._rate_window: tuple[int, int] = (0, 0)  # (t_ns, frames) at the window's start
+        self._rate = RateMeter()
         self.reconnects = 0
         self.stalls = 0
         self.errors = 0
@@ -82,48 +86,63 @@ class RobotStateClient(Reader[ReceivedState]):
         return self._decoder.stats
 
     def connect(self, *, first_frame_timeout_s: float | None = 1.0) -> None:
-        """Start the reader; wait for the first frame if asked.
+        """Start connecting; wait for the first frame unless the timeout is None.
 
-        Raises LinkError if no valid frame arrives within ``first_frame_timeout_s`` (None: do
-        not wait; the reader keeps trying to connect with backoff).
+        Raises LinkError if no valid frame arrives within ``first_frame_timeout_s`` (with None,
+        ``poll`` keeps trying to connect with backoff).
         """
-        if self.is_connected:
+        if self._wanted:
             return
-        self._stop.clear()
-        self._first_frame.clear()
-        self._thread = threading.Thread(target=self._run, daemon=True, name="robot-state")
-        self._thread.start()
-        if first_frame_timeout_s is not None and not self._first_frame.wait(first_frame_timeout_s):
-            self.close()
-            raise LinkError(
-                f"robot state {self._where()}: no valid frame within {first_frame_timeout_s} s "
-                f"({self.last_error or 'nothing received'})"
-            )
+        self._wanted = True
+        self._linked_before = False
+        self._backoff.succeeded()
+        self._unreturned = self.poll(time.monotonic_ns())
+        if first_frame_timeout_s is None:
+            return
+        deadline_ns = time.monotonic_ns() + round(first_frame_timeout_s * 1e9)
+        while not self._unreturned:
+            left_ns = deadline_ns - time.monotonic_ns()
+            if left_ns <= 0:
+                self.close()
+                raise LinkError(
+                    f"robot state {self._where()}: no valid frame within {first_frame_timeout_s}"
+                    f" s ({self.last_error or 'nothing received'})"
+                )
+            wait_readable(self._fd, left_ns / 1e9)
+            self._unreturned = self.poll(time.monotonic_ns())
 
     def close(self) -> None:
-        """Stop the reader (joined) and close the socket. Idempotent."""
-        self._stop.set()
-        sock = self._sock
-        if sock is not None:
-            with contextlib.suppress(OSError):
-                sock.shutdown(socket.SHUT_RDWR)  # unblocks recv
-        if self._thread is not None:
-            self._thread.join(timeout=5)
-            self._thread = None
+        """Close the socket; poll no longer reopens it. Idempotent."""
+        self._wanted = False
+        self._unreturned = []
+        self._drop()
 
     @property
     def is_connected(self) -> bool:
-        """True while the reader runs and its socket is connected."""
-        return self._thread is not None and self._thread.is_alive() and self._linked
+        """True while the socket is connected."""
+        return self._fd >= 0
+
+    def fileno(self) -> int:
+        """The connected socket's descriptor; -1 while down or still connecting."""
+        return self._fd
+
+    def poll(self, now_ns: int) -> list[ReceivedState]:
+        """The frames received now (stamped ``now_ns``), oldest first; never blocks or raises."""
+        try:
+            received = self._pump(now_ns)
+        except Exception as err:  # whatever happens (even a bug), the caller's loop carries on
+            self.errors += 1
+            self.last_error = error_text(err)
+            self._drop()
+            self._backoff.failed(now_ns)
+            received = []
+        if self._unreturned:
+            received, self._unreturned = self._unreturned + received, []
+        return received
 
     def latest(self) -> ReceivedState | None:
-        """The newest frame and its receive time; never blocks."""
+        """The newest frame and its receive time."""
         return self._latest
-
-    def drain(self) -> list[ReceivedState]:
-        """Frames since the last drain, oldest first (at most the last ``HISTORY``)."""
-        history = self._history
-        return [history.popleft() for _ in range(len(history))]
 
     def status(self) -> LinkStatus:
         latest = self._latest
@@ -132,7 +151,7 @@ class RobotStateClient(Reader[ReceivedState]):
             endpoint=self._where(),
             connected=self.is_connected,
             samples=self._decoder.stats.frames,
-            rate_hz=0.0 if age_ns is None or age_ns > RATE_WINDOW_NS else self._rate_hz,
+            rate_hz=self._rate.rate_hz(age_ns),
             age_ns=age_ns,
             stalls=self.stalls,
             reconnects=self.reconnects,
@@ -140,67 +159,75 @@ class RobotStateClient(Reader[ReceivedState]):
             last_error=self.last_error,
         )
 
-    def _run(self) -> None:
-        delay_s = self._backoff_s[0]
-        first = True
-        while not self._stop.is_set():
-            try:
-                sock = socket.create_connection(self.endpoint, timeout=self._connect_timeout_s)
-            except OSError as err:
-                self._error(err)
-                self._stop.wait(delay_s)
-                delay_s = min(2 * delay_s, self._backoff_s[1])
-                continue
-            if not first:
-                self.reconnects += 1
-            first = False
-            delay_s = self._backoff_s[0]
-            self._decoder.reset()
-            self._sock = sock
-            self._linked = True
-            try:
-                self._read(sock)
-            except Exception as err:  # whatever happens (even a bug), the thread carries on
-                if not self._stop.is_set():
-                    self._error(err)
-            finally:
-                self._linked = False
-                self._sock = None
-                sock.close()
+    # -- the link ----------------------------------------------------------------------------
 
-    def _read(self, sock: socket.socket) -> None:
-        sock.settimeout(None)
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        buffer = bytearray(65536)
-        while not self._stop.is_set():
-            count = sock.recv_into(buffer)
-            now = time.monotonic_ns()
+    def _pump(self, now_ns: int) -> list[ReceivedState]:
+        """Connect when due, then read and decode; raises on a lost link."""
+        if self._sock is None:
+            if not (self._wanted and self._backoff.due(now_ns)):
+                return []
+            self._start_connect(now_ns)
+        if self._fd < 0 and not self._connected(now_ns):
+            return []
+        sock, buffer, frames = self._sock, self._buffer, []
+        assert sock is not None
+        while True:
+            try:
+                count = sock.recv_into(buffer)
+            except BlockingIOError:
+                break
             if count == 0:
                 raise LinkError(f"robot state {self._where()}: closed by the robot")
             self.bytes_received += count
-            frames = self._decoder.feed(bytes(buffer[:count]))
-            if not frames:
-                continue
-            latest = self._latest
-            if latest is not None and now - latest.t_ns > self._stall_after_ns:
-                self.stalls += 1
-            for frame in frames:
-                self._history.append(ReceivedState(now, frame))
-            self._latest = ReceivedState(now, frames[-1])
-            self._first_frame.set()
-            self._update_rate(now)
+            frames += self._decoder.feed(bytes(self._view[:count]))
+            if count < len(buffer):
+                break
+        if not frames:
+            return []
+        latest = self._latest
+        if latest is not None and now_ns - latest.t_ns > self._stall_after_ns:
+            self.stalls += 1
+        received = [ReceivedState(now_ns, frame) for frame in frames]
+        self._latest = received[-1]
+        self._rate.update(now_ns, self._decoder.stats.frames)
+        return received
 
-    def _update_rate(self, now_ns: int) -> None:
-        t0, n0 = self._rate_window
-        frames = self._decoder.stats.frames
-        if now_ns - t0 >= RATE_WINDOW_NS:
-            if t0:
-                self._rate_hz = (frames - n0) * 1e9 / (now_ns - t0)
-            self._rate_window = (now_ns, frames)
+    def _start_connect(self, now_ns: int) -> None:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        sock.setblocking(False)
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        code = sock.connect_ex(self.endpoint)
+        if code not in (0, errno.EINPROGRESS):
+            sock.close()
+            raise OSError(code, os.strerror(code))
+        self._sock = sock
+        self._connect_started_ns = now_ns
 
-    def _error(self, err: Exception) -> None:
-        self.errors += 1
-        self.last_error = str(err) if isinstance(err, LinkError) else f"{type(err).__name__}: {err}"
+    def _connected(self, now_ns: int) -> bool:
+        """Whether the connect in progress completed; raises if it failed or took too long."""
+        sock = self._sock
+        assert sock is not None
+        _, writable, _ = select.select([], [sock], [], 0)
+        if not writable:
+            if now_ns - self._connect_started_ns > self._connect_timeout_ns:
+                raise LinkError(f"robot state {self._where()}: connect timed out")
+            return False
+        code = sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR)
+        if code:
+            raise OSError(code, os.strerror(code))
+        self._fd = sock.fileno()
+        self._decoder.reset()
+        self._backoff.succeeded()
+        if self._linked_before:
+            self.reconnects += 1
+        self._linked_before = True
+        return True
+
+    def _drop(self) -> None:
+        sock, self._sock, self._fd = self._sock, None, -1
+        if sock is not None:
+            with contextlib.suppress(OSError):
+                sock.close()
 
     def _where(self) -> str:
         return f"tcp://{self.endpoint[0]}:{self.endpoint[1]}"

@@ -1,10 +1,18 @@
-"""The joint-state stream between the client driver and the emulator, over loopback TCP."""
+"""The polled joint-state client against the emulated stream over loopback TCP.
 
-from waiting import wait_until
+The client is driven from the test thread (select on ``fileno()``, then ``poll``) until a count
+is reached, with a generous deadline; nothing asserts on timing.
+"""
+
+import socket
+import threading
+import time
+
+from polling import poll_for, poll_until
 
 from hilrig.drivers.emulated.robot_state_server import EmulatedRobotStateServer
-from hilrig.drivers.robot_state import RobotStateClient
-from hilrig.drivers.robot_state_codec import MAGIC, RobotState, RobotStatus
+from hilrig.drivers.robot_state import ReceivedState, RobotStateClient
+from hilrig.drivers.robot_state_codec import MAGIC, RobotState, RobotStatus, encode
 from hilrig.errors import LinkError
 
 
@@ -15,18 +23,35 @@ def source(sequence: int) -> RobotState:
     )
 
 
-def test_frames_arrive_in_order_with_receive_times() -> None:
+def test_frames_arrive_in_order_stamped_with_the_poll_time() -> None:
+    received: list[ReceivedState] = []
     with (
         EmulatedRobotStateServer(source) as server,
         RobotStateClient("127.0.0.1", server.port) as client,
     ):
-        wait_until(lambda: client.decoder_stats().frames >= 50)
+        poll_until(lambda: len(received) >= 50, client, sink=received)
+        sequences = [r.state.sequence for r in received]
+        assert sequences == list(range(sequences[0], sequences[0] + len(received)))
+        assert all(r.state == source(r.state.sequence) for r in received)
+        assert client.latest() == received[-1]
+        assert client.decoder_stats().frames == len(received)  # connect's frames included
+        now_ns = time.monotonic_ns()
+        poll_until(lambda: len(client.poll(now_ns)) > 0)
         latest = client.latest()
-        assert latest is not None
-        assert latest.state == source(latest.state.sequence)
+        assert latest is not None and latest.t_ns == now_ns
         status = client.status()
         assert status.connected and status.age_ns is not None and status.age_ns >= 0
     assert client.decoder_stats().crc_errors == client.decoder_stats().bytes_dropped == 0
+    assert client.fileno() == -1 and not client.is_connected
+
+
+def test_no_thread_runs_while_polling() -> None:
+    with EmulatedRobotStateServer(source) as server:
+        before = threading.active_count()
+        with RobotStateClient("127.0.0.1", server.port) as client:
+            for n in range(5):
+                poll_until(lambda n=n: client.decoder_stats().frames >= 20 * (n + 1), client)
+                assert threading.active_count() == before
 
 
 def test_garbage_is_dropped_and_counted_and_the_stream_resumes() -> None:
@@ -34,25 +59,25 @@ def test_garbage_is_dropped_and_counted_and_the_stream_resumes() -> None:
         EmulatedRobotStateServer(source) as server,
         RobotStateClient("127.0.0.1", server.port) as client,
     ):
-        wait_until(lambda: client.decoder_stats().frames >= 5)
+        poll_until(lambda: client.decoder_stats().frames >= 5, client)
         server.inject(b"\xffjunk" + MAGIC + b"\x00" * 10)
-        wait_until(lambda: client.decoder_stats().bytes_dropped >= 5)
+        poll_until(lambda: client.decoder_stats().bytes_dropped >= 5, client)
         frames = client.decoder_stats().frames
-        wait_until(lambda: client.decoder_stats().frames >= frames + 5)
+        poll_until(lambda: client.decoder_stats().frames >= frames + 5, client)
     assert client.decoder_stats().bytes_dropped >= 5
-    assert client.last_error == ""
+    assert client.last_error == "" and client.errors == 0
 
 
 def test_a_stall_makes_the_state_stale_and_counts_the_gap() -> None:
     with (
         EmulatedRobotStateServer(source) as server,
-        RobotStateClient("127.0.0.1", server.port) as client,
+        RobotStateClient("127.0.0.1", server.port, stall_after_s=0.1) as client,
     ):
-        wait_until(lambda: client.decoder_stats().frames >= 5)
-        server.stall(0.2)
-        wait_until(lambda: (client.status().age_ns or 0) > 50_000_000)
+        poll_until(lambda: client.decoder_stats().frames >= 5, client)
+        server.stall(0.3)
+        poll_until(lambda: (client.status().age_ns or 0) > 100_000_000, client)
         gaps = client.decoder_stats().sequence_gaps
-        wait_until(lambda: client.decoder_stats().sequence_gaps > gaps)
+        poll_until(lambda: client.decoder_stats().sequence_gaps > gaps, client)
     assert client.decoder_stats().frames_missed >= 1
     assert client.stalls == 1
 
@@ -62,14 +87,49 @@ def test_the_client_reconnects_after_a_dropped_link() -> None:
         EmulatedRobotStateServer(source) as server,
         RobotStateClient("127.0.0.1", server.port, backoff_s=(0.005, 0.05)) as client,
     ):
-        wait_until(lambda: client.decoder_stats().frames >= 5)
+        poll_until(lambda: client.decoder_stats().frames >= 5, client)
         server.drop_links()
-        wait_until(lambda: client.reconnects == 1 and client.is_connected)
+        poll_until(lambda: client.reconnects == 1 and client.is_connected, client)
         frames = client.decoder_stats().frames
-        wait_until(lambda: client.decoder_stats().frames > frames + 5)
+        poll_until(lambda: client.decoder_stats().frames > frames + 5, client)
     assert server.stats.links_dropped == 1
-    assert client.last_error.endswith("closed by the robot")
+    assert client.last_error == f"robot state tcp://127.0.0.1:{server.port}: closed by the robot"
     assert client.stalls == 0 and client.errors == 1
+
+
+def test_connect_without_waiting_keeps_trying_until_the_robot_listens() -> None:
+    with EmulatedRobotStateServer(source) as server:
+        port = server.port
+    client = RobotStateClient("127.0.0.1", port, backoff_s=(0.005, 0.02))
+    client.connect(first_frame_timeout_s=None)
+    poll_until(lambda: client.errors >= 3, client)  # refused, counted, retried with backoff
+    assert not client.is_connected and client.fileno() == -1
+    assert client.last_error == "ConnectionRefusedError: [Errno 111] Connection refused"
+    with EmulatedRobotStateServer(source, port=port):
+        poll_until(lambda: client.decoder_stats().frames >= 5, client)
+        assert client.is_connected and client.reconnects == 0  # the first link, not a reconnect
+    client.close()
+
+
+def test_frames_split_across_polls_are_reassembled() -> None:
+    with socket.create_server(("127.0.0.1", 0)) as listener:
+        client = RobotStateClient("127.0.0.1", listener.getsockname()[1])
+        client.connect(first_frame_timeout_s=None)
+        peer, _ = listener.accept()
+        with peer:
+            received: list[ReceivedState] = []
+            frames = b"".join(encode(source(n)) for n in range(3))
+            for at in range(0, len(frames), 7):  # 7-byte pieces, each polled on its own
+                peer.sendall(frames[at : at + 7])
+                poll_until(
+                    lambda at=at: client.bytes_received >= min(at + 7, len(frames)),
+                    client,
+                    sink=received,
+                )
+            assert [r.state for r in received] == [source(n) for n in range(3)]
+            poll_for(0.02, client)
+            assert client.errors == 0
+        client.close()
 
 
 def test_connect_fails_clearly_when_no_robot_answers() -> None:
@@ -79,8 +139,9 @@ def test_connect_fails_clearly_when_no_robot_answers() -> None:
     try:
         client.connect(first_frame_timeout_s=0.2)
     except LinkError as err:
-        assert str(err).startswith(
-            f"robot state tcp://127.0.0.1:{port}: no valid frame within 0.2 s ("
+        assert str(err) == (
+            f"robot state tcp://127.0.0.1:{port}: no valid frame within 0.2 s "
+            "(ConnectionRefusedError: [Errno 111] Connection refused)"
         )
     else:
         raise AssertionError("no error")
