@@ -1,12 +1,19 @@
-"""When to try reopening a lost link: exponential backoff between bounds, reset on success.
+"""Reopening lost links without a thread: when to try (backoff) and a non-blocking TCP connect.
 
 Shared by every polled driver. It only answers "is an attempt due at ``now_ns``?": the driver
 makes the (non-blocking) attempt itself from its ``poll``, so no thread and no sleep is needed.
 A retry library such as tenacity wraps a blocking call in a sleeping loop, which is what the
-polled drivers must not do; the policy itself is a few lines.
+polled drivers must not do; the policy itself is a few lines. A TCP connect to a real robot
+can take long, so it is started non-blocking (``connect_ex``) and its completion checked by the
+next polls (``tcp_connected``).
 """
 
 from __future__ import annotations
+
+import errno
+import os
+import select
+import socket
 
 from hilrig.errors import ParameterError
 
@@ -42,3 +49,30 @@ class Backoff:
         """The link is up: the next loss waits ``min_s`` again."""
         self._delay_ns = self._min_ns
         self.next_attempt_ns = 0
+
+
+def start_tcp_connect(address: tuple[str, int]) -> socket.socket:
+    """A non-blocking TCP_NODELAY socket whose connect to ``address`` is under way (or done).
+
+    Raises OSError if it failed at once. ``address`` should be numeric: a host name is resolved
+    here, blocking.
+    """
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.setblocking(False)
+    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    code = sock.connect_ex(address)
+    if code not in (0, errno.EINPROGRESS):
+        sock.close()
+        raise OSError(code, os.strerror(code))
+    return sock
+
+
+def tcp_connected(sock: socket.socket) -> bool:
+    """Whether the connect under way on ``sock`` finished (never blocks); OSError if it failed."""
+    _, writable, _ = select.select([], [sock], [], 0)
+    if not writable:
+        return False
+    code = sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR)
+    if code:
+        raise OSError(code, os.strerror(code))
+    return True

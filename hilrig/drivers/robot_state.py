@@ -13,9 +13,6 @@ non-blocking too (``connect_ex``, then writability checked by the next polls): n
 from __future__ import annotations
 
 import contextlib
-import errno
-import os
-import select
 import socket
 import time
 from collections.abc import Callable
@@ -23,7 +20,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from hilrig.drivers.base import LinkStatus, RateMeter, Reader, error_text, wait_readable
-from hilrig.drivers.reconnect import Backoff
+from hilrig.drivers.reconnect import Backoff, start_tcp_connect, tcp_connected
 from hilrig.drivers.robot_state_codec import DecoderStats, RobotState, RobotStateDecoder
 from hilrig.errors import LinkError
 
@@ -166,7 +163,8 @@ class RobotStateClient(Reader[ReceivedState]):
         if self._sock is None:
             if not (self._wanted and self._backoff.due(now_ns)):
                 return []
-            self._start_connect(now_ns)
+            self._sock = start_tcp_connect(self.endpoint)
+            self._connect_started_ns = now_ns
         if self._fd < 0 and not self._connected(now_ns):
             return []
         sock, buffer, frames = self._sock, self._buffer, []
@@ -192,30 +190,14 @@ class RobotStateClient(Reader[ReceivedState]):
         self._rate.update(now_ns, self._decoder.stats.frames)
         return received
 
-    def _start_connect(self, now_ns: int) -> None:
-        sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        sock.setblocking(False)
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        code = sock.connect_ex(self.endpoint)
-        if code not in (0, errno.EINPROGRESS):
-            sock.close()
-            raise OSError(code, os.strerror(code))
-        self._sock = sock
-        self._connect_started_ns = now_ns
-
     def _connected(self, now_ns: int) -> bool:
-        """Whether the connect in progress completed; raises if it failed or took too long."""
-        sock = self._sock
-        assert sock is not None
-        _, writable, _ = select.select([], [sock], [], 0)
-        if not writable:
+        """Whether the connect under way completed; raises if it failed or took too long."""
+        assert self._sock is not None
+        if not tcp_connected(self._sock):
             if now_ns - self._connect_started_ns > self._connect_timeout_ns:
                 raise LinkError(f"robot state {self._where()}: connect timed out")
             return False
-        code = sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR)
-        if code:
-            raise OSError(code, os.strerror(code))
-        self._fd = sock.fileno()
+        self._fd = self._sock.fileno()
         self._decoder.reset()
         self._backoff.succeeded()
         if self._linked_before:
