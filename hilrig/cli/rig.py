@@ -1,7 +1,6 @@
 """``hilrig rig serve``: the emulated rig as its own process, until Ctrl-C or SIGTERM."""
 
 import signal
-import threading
 from pathlib import Path
 from typing import Annotated
 
@@ -31,14 +30,16 @@ def serve(
     ] = None,
     seed: Annotated[int, typer.Option(help="Seed of the sensor and joint-torque noise.")] = 0,
 ) -> None:
-    """Run the emulated AUBO-i5 and wrist F/T sensor; print their endpoints; stop on Ctrl-C."""
+    """Run the emulated AUBO-i5 and wrist F/T sensor; print their endpoints; stop on Ctrl-C.
+
+    The rig's slot loop runs in this process's main thread (real-time priority where permitted).
+    """
     console = Console(soft_wrap=True)  # endpoint lines are read by scripts: never wrapped
     config = RigConfig(rate_hz=rate_hz, seed=seed)
     rig = EmulatedRig(scenario(volunteer), config=config, port_path=port_path)
-    stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
-    endpoints = rig.start()
+        signal.signal(signum, lambda *_: rig.request_stop())
+    endpoints = rig.open()
     try:
         console.print(
             f"emulated rig running, scenario {volunteer}, {rate_hz:g} Hz", highlight=False
@@ -47,12 +48,13 @@ def serve(
             console.print(f"  {line}", highlight=False)
         console.print("Ctrl-C to stop", highlight=False)
         console.file.flush()  # a script reading the endpoints from a pipe must get them now
-        stop.wait()
+        rig.run()
     finally:
-        rig.stop()
-    ft, state = rig.ft.stats(), rig.robot_state.stats
+        rig.close()
+    counts = rig.counters()
     console.print(
-        f"stopped: {ft.frames_sent} F/T frames, {state.ticks} joint-state frames, "
-        f"{rig.modbus.writes} target writes, {state.late_ticks} late stream ticks",
+        f"stopped: {counts.ft_frames_sent} F/T frames, {counts.joint_frames_sent} joint-state "
+        f"frames, {counts.modbus_writes} target writes, {counts.slots_late} late slots, "
+        f"{counts.slots_skipped} skipped",
         highlight=False,
     )

@@ -22,7 +22,7 @@ def drive(plant: JointServoPlant, q: list[float], ticks: int, start_tick: int = 
     for n in range(start_tick, start_tick + ticks):
         plant.set_targets(JointTargets(tuple(q), n + 1, Mode.TRACK), n * MS)
         plant.advance(n * MS)
-        states.append(plant.state(n, n * MS, np.zeros(6)))
+        states.append(plant.state(n, n * MS, (0.0,) * 6))
     return states
 
 
@@ -52,7 +52,7 @@ def test_the_watchdog_holds_when_targets_stop() -> None:
     q_at_silence = plant.q_rad
     for n in range(100, 1000):  # no more writes
         plant.advance(n * MS)
-    held = plant.state(0, 0, np.zeros(6))
+    held = plant.state(0, 0, (0.0,) * 6)
     assert held.status == RobotStatus.ENABLED | RobotStatus.HOLDING
     assert plant.watchdog_trips == 1
     assert np.all(np.array(held.q_rad) < 1.0 - 0.1)  # stopped well short of the target
@@ -66,6 +66,6 @@ def test_a_stop_write_latches_until_cleared() -> None:
     plant.set_targets(JointTargets((3.0,) * 6, 51, Mode.STOP), 50 * MS)
     for n in range(50, 800):
         plant.advance(n * MS)
-    stopped = plant.state(0, 0, np.zeros(6))
+    stopped = plant.state(0, 0, (0.0,) * 6)
     assert RobotStatus.PROTECTIVE_STOP in stopped.status
     assert max(stopped.q_rad) < 0.5

@@ -3,29 +3,29 @@
 import time
 
 import numpy as np
-from waiting import wait_until
 
+from hilrig.drivers.emulated.probe import RigProbe
 from hilrig.drivers.emulated.rig import HOME_Q_RAD, EmulatedRig, RigConfig
 from hilrig.drivers.emulated.scenarios import HandContact, PaperBody, PaperEndEffector, scenario
-from hilrig.drivers.ft_serial import FtSerial
+from hilrig.drivers.ft_sensor import FtSample
 from hilrig.drivers.gravity import gravity_wrench
-from hilrig.drivers.joint_targets import JointTargetsWriter, ModbusEndpoint
-from hilrig.drivers.robot_state import RobotStateClient
-from hilrig.drivers.robot_state_codec import RobotStatus
+from hilrig.drivers.robot_state_codec import RobotState, RobotStatus
 from hilrig.errors import HilrigError
 from hilrig.paper.profiles import end_effector_force, joint_torque
 from hilrig.robot import RobotModel
 
 
-def collect(sensor: FtSerial, count: int) -> list:
-    """At least ``count`` samples drained from the sensor."""
-    samples: list = []
-    deadline = time.monotonic() + 10.0
-    while len(samples) < count and time.monotonic() < deadline:
-        samples.extend(sensor.drain())
-        time.sleep(0.01)
-    assert len(samples) >= count, "too few samples"
-    return samples
+def read_at_least(probe: RigProbe, samples: int, states: int) -> tuple[list, list]:
+    """At least ``samples`` F/T samples and ``states`` joint states (generous deadline)."""
+    got_samples: list[FtSample] = []
+    got_states: list[RobotState] = []
+    deadline = time.monotonic() + 30.0
+    while len(got_samples) < samples or len(got_states) < states:
+        assert time.monotonic() < deadline, "too few frames"
+        new_samples, new_states = probe.read(0.01)
+        got_samples += new_samples
+        got_states += new_states
+    return got_samples, got_states
 
 
 class Constant:
@@ -34,30 +34,22 @@ class Constant:
     name = "constant"
 
     def __init__(self, wrench: list[float]) -> None:
-        self.wrench = np.asarray(wrench)
+        self.wrench = tuple(wrench)
 
-    def wrench_in_sensor(self, t_s: float, pose: np.ndarray) -> np.ndarray:
+    def wrench_in_sensor(self, t_s: float, pose: np.ndarray) -> tuple[float, ...]:
         return self.wrench
 
-    def joint_torque(self, t_s: float) -> np.ndarray:
-        return np.array([1.0, -2.0, 0.0, 0.0, 0.0, 0.0])
+    def joint_torque(self, t_s: float) -> tuple[float, ...]:
+        return (1.0, -2.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def test_rig_streams_sensor_and_state_and_follows_modbus_targets() -> None:
     rig = EmulatedRig(Constant([2.0, -1.0, 3.0, 0.0, 0.1, 0.0]))
-    with (
-        rig as endpoints,
-        FtSerial(endpoints.ft_wrist_port) as sensor,
-        RobotStateClient(*endpoints.robot_state) as state,
-        JointTargetsWriter(ModbusEndpoint(*endpoints.modbus)) as writer,
-    ):
-        wait_until(lambda: state.latest() is not None and len(sensor.drain()) > 0)
-        received = state.latest()
-        assert received is not None
-        np.testing.assert_allclose(received.state.q_rad, HOME_Q_RAD, atol=1e-9)
-        assert RobotStatus.HOLDING in received.state.status
+    with rig as endpoints, RigProbe(endpoints) as probe:
+        samples, states = read_at_least(probe, 300, 1)
+        np.testing.assert_allclose(states[0].q_rad, HOME_Q_RAD, atol=1e-9)
+        assert RobotStatus.HOLDING in states[0].status
         # the sensor reads the volunteer's wrench + bias + the tool's gravity at the home pose
-        samples = collect(sensor, 300)
         mean = np.mean([s.wrench_in_sensor for s in samples], axis=0)
         pose = RobotModel().fk(np.asarray(HOME_Q_RAD))
         config = RigConfig().ft
@@ -69,14 +61,14 @@ def test_rig_streams_sensor_and_state_and_follows_modbus_targets() -> None:
         np.testing.assert_allclose(mean, expected, atol=0.02)
         # joint targets over Modbus move the arm; the watchdog count keeps it tracking
         target = np.asarray(HOME_Q_RAD) + 0.05
-        for _ in range(400):
-            writer.write(target)
-            time.sleep(0.002)
-        moved = state.latest()
-        assert moved is not None
-        assert RobotStatus.TRACKING in moved.state.status
-        np.testing.assert_allclose(moved.state.q_rad, target, atol=0.01)
-        assert abs(moved.state.torque_nm[1] + 2.0) < 0.5  # measured joint torque, with noise
+        for n in range(1, 401):
+            assert not probe.write(target, n).isError()
+            _, states = read_at_least(probe, 0, 1)  # one write per joint-state frame
+        moved = states[-1]
+        assert RobotStatus.TRACKING in moved.status
+        np.testing.assert_allclose(moved.q_rad, target, atol=0.01)
+        assert abs(moved.torque_nm[1] + 2.0) < 0.5  # measured joint torque, with noise
+    assert rig.counters().modbus_writes == 400
 
 
 def test_paper_scenarios_are_the_paper_profiles() -> None:
@@ -94,7 +86,7 @@ def test_hand_contact_closes_the_loop_through_the_robots_yielding() -> None:
     hand = HandContact(period_s=None, damping_n_s_m=0.0)
     still = np.eye(4)
     # t = 2.5 s: the hand has moved 0.05 m from 0.05 m short, so it just touches: no force yet
-    assert not hand.wrench_in_sensor(2.5, still).any()
+    assert not any(hand.wrench_in_sensor(2.5, still))
     # t = 2.7 s: 0.02 m past the tool's start; a tool that stayed put is pushed with k*0.02 N
     pushed = hand.wrench_in_sensor(2.7, still)
     np.testing.assert_allclose(pushed[:3], [0.0, 300.0 * 0.02, 0.0], atol=1e-9)
@@ -106,7 +98,7 @@ def test_hand_contact_closes_the_loop_through_the_robots_yielding() -> None:
     np.testing.assert_allclose(hand.wrench_in_sensor(2.7, yielded)[1], 300.0 * 0.005, atol=1e-9)
     # a hand never pulls: a tool that yielded beyond the hand gets no force
     yielded[1, 3] = 0.05
-    assert not hand.wrench_in_sensor(2.7, yielded).any()
+    assert not any(hand.wrench_in_sensor(2.7, yielded))
 
 
 def test_unknown_scenario_is_refused() -> None:

@@ -1,11 +1,12 @@
 """``hilrig rig serve`` as its own process: endpoints on stdout at once, clean stop on SIGINT."""
 
 import signal
+import socket
 import subprocess
 import sys
 from pathlib import Path
 
-from hilrig.drivers.robot_state import RobotStateClient
+from hilrig.drivers.robot_state_codec import RobotStateDecoder
 
 
 def test_rig_serve_prints_endpoints_that_work_and_stops_cleanly(tmp_path: Path) -> None:
@@ -30,11 +31,13 @@ def test_rig_serve_prints_endpoints_that_work_and_stops_cleanly(tmp_path: Path) 
         assert lines[1].strip() == f"wrist F/T sensor (Kunwei, 460800 8N1): {tmp_path / 'ft'}"
         host, port = lines[2].rsplit(": ", 1)[1].strip().rsplit(":", 1)
         assert host == "127.0.0.1"
-        with RobotStateClient(host, int(port)) as client:
-            assert client.latest() is not None
+        decoder = RobotStateDecoder()
+        with socket.create_connection((host, int(port)), timeout=10) as stream:
+            while not decoder.feed(stream.recv(4096)):
+                pass
         server.send_signal(signal.SIGINT)
         out, _ = server.communicate(timeout=20)
     finally:
         server.kill()
     assert server.returncode == 0
-    assert out.startswith("stopped: ")
+    assert out.startswith("stopped: ") and " F/T frames, " in out

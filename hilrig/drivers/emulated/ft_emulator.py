@@ -1,29 +1,30 @@
-"""The Kunwei F/T sensor, emulated on a pseudo-terminal: byte-exact frames at a fixed rate.
+"""The Kunwei F/T sensor, emulated on a pseudo-terminal: byte-exact frames, one per slot.
 
 The emulator owns a pty pair in raw mode and keeps a symlink to its slave at ``port_path``; a
 driver opens that path with pyserial as it would ``/dev/ttyUSB0``. Like the real sensor it
-streams only after the start command ``48 AA 0D 0A`` and stops on ``43 AA 0D 0A``. Frames are
-paced by absolute deadlines on the monotonic clock at ``rate_hz``; a frame more than
-``MAX_LATE_SLOTS`` periods late is skipped (counted), not burst out.
+streams only after the start command ``48 AA 0D 0A`` and stops on ``43 AA 0D 0A``.
+
+It is a device of a :class:`SlotLoop`: ``attach(loop)`` makes the pty and has the loop read
+commands as they arrive; ``tick(slot_ns)`` sends that slot's frame. The emulated rig drives it
+in its one thread; ``start()``/``stop()`` (or ``with``) run it alone in a loop thread of its own,
+and ``python -m hilrig.drivers.emulated.ft_emulator --port-path /tmp/ft`` as its own process.
 
 Each frame carries ``source(t_s)`` (the external wrench on the sensor, N and N*m, ``t_s`` the
-frame's slot time in s since ``start()``) plus bias, Gaussian noise and the tool's gravity
-wrench at ``orientation(t_s)`` (R_base_sensor), converted to kgf with ``kgf_scale``.
+frame's slot time in s since the loop started) plus bias, Gaussian noise and the tool's gravity
+wrench at ``orientation(t_s)`` (R_base_sensor), converted to kgf with ``kgf_scale``. A frame that
+finds more than ``MAX_BACKLOG_BYTES`` unsent (nobody reading) is dropped whole (counted).
 
-Faults, each applied by the emulator thread at the next frame: ``inject_garbage``,
-``split_frames``, ``header_in_floats``, ``bad_values``, ``stall`` and ``drop_link`` (the pty is
-closed and a new one made behind the same ``port_path`` after a pause, like an adapter unplugged
-and plugged back; the sensor then waits for the start command again).
-
-Runs as a thread (:class:`FtEmulator`, ``start()``/``stop()`` or ``with``) or as its own
-process: ``python -m hilrig.drivers.emulated.ft_emulator --port-path /tmp/ft``.
+Faults, requested from any thread and applied at the next slot: ``inject_garbage``,
+``split_frames`` (the frame's tail follows one slot later), ``header_in_floats``,
+``bad_values``, ``stall`` and ``drop_link`` (the pty is closed and a new one made behind the same
+``port_path`` after a pause, like an adapter unplugged and plugged back; the sensor then waits
+for the start command again). Frames still unread in a pty when it closes are lost with it.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import select
 import shutil
 import signal
 import struct
@@ -31,6 +32,7 @@ import tempfile
 import threading
 import time
 import tty
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +40,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from hilrig.drivers.emulated.outbox import Outbox
+from hilrig.drivers.emulated.slots import Device, SlotLoop
 from hilrig.drivers.ft_sensor import FRAME, HEADER, KGF_N, START_COMMAND, STOP_COMMAND, TAIL
 from hilrig.drivers.gravity import STANDARD_GRAVITY_IN_BASE, ToolLoad
 
@@ -45,9 +49,7 @@ Source = Callable[[float], Sequence[float]]
 Orientation = Callable[[float], NDArray[np.float64]]
 SentHook = Callable[[float, int], None]  # (slot time t_s, monotonic ns just before the write)
 
-MAX_LATE_SLOTS = 5
 MAX_BACKLOG_BYTES = 4096  # unsent bytes beyond which whole frames are dropped
-_IDLE_WAIT_NS = 20_000_000
 _NOISE_BLOCK = 1024
 _FLOAT = struct.Struct("<f")
 _WORD = struct.Struct("<I")
@@ -71,31 +73,15 @@ class EmulatorConfig:
     tool: ToolLoad = field(default_factory=ToolLoad)
     gravity_in_base: tuple[float, float, float] = STANDARD_GRAVITY_IN_BASE
     seed: int = 0
-    split_pause_s: float = 0.0003
-
-
-@dataclass(slots=True)
-class _Counters:
-    frames_sent: int = 0
-    frames_dropped: int = 0  # the pty was full (nobody reading): whole frames dropped
-    slots_skipped: int = 0  # frame slots not sent: stalls, lateness, link down
-    garbage_bytes: int = 0
-    split_frames: int = 0
-    header_frames: int = 0
-    bad_value_frames: int = 0
-    stalls: int = 0
-    link_drops: int = 0
-    starts: int = 0
-    stops: int = 0
 
 
 @dataclass(frozen=True, slots=True)
 class EmulatorStats:
-    """Counters since ``start()``; ``slots_skipped`` counts frames not sent (stalls, lateness)."""
+    """Counters since start; ``slots_skipped`` counts slots not sent while streaming (stalls)."""
 
     streaming: bool
-    frames_sent: int
-    frames_dropped: int
+    frames_sent: int  # handed whole to the pty
+    frames_dropped: int  # the pty was full (nobody reading) or closed under them
     slots_skipped: int
     garbage_bytes: int
     split_frames: int
@@ -119,18 +105,23 @@ class _Pty:
         os.symlink(os.ttyname(self.slave), temporary)
         os.replace(temporary, link)
 
+    def write(self, data: bytes | bytearray) -> int:
+        try:
+            return os.write(self.master, data)
+        except BlockingIOError:
+            return 0
+
     def close(self, link: Path) -> None:
         link.unlink(missing_ok=True)
         os.close(self.master)
         os.close(self.slave)
 
 
-class FtEmulator:
+class FtEmulator(Device):
     """A Kunwei sensor on a pty; drivers open ``port_path`` (a temporary one unless given).
 
-    ``on_sent(t_s, t_ns)``, if given, is called in the emulator thread after each frame with its
-    slot time and the monotonic time just before its last byte was written (for latency
-    measurement); it must be quick.
+    ``on_sent(t_s, t_ns)``, if given, is called after each frame written whole at once with its
+    slot time and the monotonic time just before the write (latency measurement); quick.
     """
 
     def __init__(
@@ -143,6 +134,8 @@ class FtEmulator:
         on_sent: SentHook | None = None,
     ) -> None:
         self.config = EmulatorConfig() if config is None else config
+        self.standalone_period_ns = round(1e9 / self.config.rate_hz)
+        self.thread_name = "ft-emulator"
         if port_path is None:
             self._own_dir: Path | None = Path(tempfile.mkdtemp(prefix="hilrig-ft-"))
             self.port_path = self._own_dir / "tty"
@@ -152,171 +145,148 @@ class FtEmulator:
         self._source = source
         self._orientation = orientation
         self._on_sent = on_sent
-        self._period_ns = round(1e9 / self.config.rate_hz)
         self._scale = 1.0 / self.config.kgf_scale
         self._bias = self.config.bias_in_sensor
-        self._tool_map = self.config.tool.wrench_map()
-        self._gravity = np.array(self.config.gravity_in_base, dtype=np.float64)
+        self._tool_map = self.config.tool.wrench_map().tolist()
+        self._gravity = self.config.gravity_in_base
         self._rng = np.random.default_rng(self.config.seed)
         self._noise: list[list[float]] = []
-        self._stop = threading.Event()
-        self._wake_r, self._wake_w = os.pipe()
-        os.set_blocking(self._wake_r, False)
-        self._thread = threading.Thread(target=self._run, daemon=True, name="ft-emulator")
+        self._requests: deque[Callable[[int], None]] = deque()  # faults, applied by tick()
+        self._loop: SlotLoop | None = None
         self._pty: _Pty | None = None
+        self._out = Outbox(lambda data: 0, MAX_BACKLOG_BYTES)
+        self._sent_before = self._dropped_before = 0  # by the outboxes of closed ptys
         self._rx = bytearray()
-        self._tx = bytearray()
-        self._counts = _Counters()
         self._streaming = False
         self._t0_ns = 0
-        self._next_ns = 0
         self._up_at_ns: int | None = None
-        # fault requests: set by any thread under _lock, taken by the emulator thread
-        self._lock = threading.Lock()
-        self._garbage = bytearray()
-        self._split_left = 0
-        self._header_left = 0
-        self._bad_left = 0
-        self._stall_ns = 0
-        self._drop_ns: int | None = None
+        self._stall_until_ns = 0
+        self._tail = b""  # the second part of a split frame, sent at the next slot
+        self._split_left = self._header_left = self._bad_left = 0
+        self.slots_skipped = self.garbage_bytes = self.split_count = 0
+        self.header_frames = self.bad_value_frames = 0
+        self.stalls = self.link_drops = self.starts = self.stops = 0
 
-    # -- lifecycle ---------------------------------------------------------------------------
+    # -- as a device of a slot loop ----------------------------------------------------------
 
-    def start(self) -> FtEmulator:
-        """Create the pty and ``port_path`` and start the emulator thread; returns self."""
-        self._pty = _Pty(self.port_path)
-        self._t0_ns = time.monotonic_ns()
-        self._thread.start()
-        return self
+    def attach(self, loop: SlotLoop) -> None:
+        """Create the pty and ``port_path``; ``loop`` reads its commands from now on."""
+        self._loop = loop
+        self._t0_ns = loop.t0_ns
+        self._link_up()
 
-    def stop(self) -> None:
-        """Stop the thread, close the pty and remove ``port_path`` (and its temporary folder)."""
-        if self._wake_w < 0:
-            return  # already stopped
-        self._stop.set()
-        self._wake()
-        if self._thread.is_alive():
-            self._thread.join(timeout=5)
-        if self._pty is not None:
-            self._pty.close(self.port_path)
-            self._pty = None
-        for fd in (self._wake_r, self._wake_w):
-            os.close(fd)
-        self._wake_r = self._wake_w = -1
+    def tick(self, slot_ns: int) -> None:
+        """Apply requested faults, then send this slot's frame if streaming."""
+        while self._requests:
+            self._requests.popleft()(slot_ns)
+        if self._pty is None:
+            if self._up_at_ns is not None and slot_ns >= self._up_at_ns:
+                self._link_up()
+            return
+        if self._tail:
+            self._out.put(self._tail)
+            self._tail = b""
+        if not self._streaming:
+            return
+        if slot_ns < self._stall_until_ns:
+            self.slots_skipped += 1
+            return
+        self._send(slot_ns)
+
+    def close(self) -> None:
+        """Close the pty and remove ``port_path`` (and its temporary folder)."""
+        self._link_down()
         if self._own_dir is not None:
             shutil.rmtree(self._own_dir, ignore_errors=True)
 
-    def __enter__(self) -> FtEmulator:
-        return self.start()
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.stop()
-
     def stats(self) -> EmulatorStats:
         """A snapshot of the counters."""
-        c = self._counts
         return EmulatorStats(
             self._streaming,
-            c.frames_sent,
-            c.frames_dropped,
-            c.slots_skipped,
-            c.garbage_bytes,
-            c.split_frames,
-            c.header_frames,
-            c.bad_value_frames,
-            c.stalls,
-            c.link_drops,
-            c.starts,
-            c.stops,
+            self._sent_before + self._out.frames_sent,
+            self._dropped_before + self._out.frames_dropped,
+            self.slots_skipped,
+            self.garbage_bytes,
+            self.split_count,
+            self.header_frames,
+            self.bad_value_frames,
+            self.stalls,
+            self.link_drops,
+            self.starts,
+            self.stops,
         )
 
-    # -- faults ------------------------------------------------------------------------------
+    # -- faults (any thread) -----------------------------------------------------------------
 
     def inject_garbage(self, data: bytes) -> None:
         """Send ``data`` between two frames."""
-        with self._lock:
-            self._garbage += data
-        self._wake()
+        self._requests.append(lambda _: self._garbage(bytes(data)))
 
     def split_frames(self, count: int) -> None:
-        """Write each of the next ``count`` frames in two parts, ``split_pause_s`` apart."""
-        with self._lock:
-            self._split_left += count
+        """Write each of the next ``count`` frames in two parts, one slot apart."""
+        self._requests.append(lambda _: setattr(self, "_split_left", self._split_left + count))
 
     def header_in_floats(self, count: int) -> None:
         """Make the low two bytes of every float of the next ``count`` frames ``48 AA``.
 
         The values change by less than 1 % (only low mantissa bits), so the frames stay valid.
         """
-        with self._lock:
-            self._header_left += count
+        self._requests.append(lambda _: setattr(self, "_header_left", self._header_left + count))
 
     def bad_values(self, count: int) -> None:
         """Send the next ``count`` frames with Fz NaN, inf or 1e30 kgf in turn (valid framing)."""
-        with self._lock:
-            self._bad_left += count
+        self._requests.append(lambda _: setattr(self, "_bad_left", self._bad_left + count))
 
     def stall(self, duration_s: float) -> None:
         """Send nothing for ``duration_s``; the missed slots are skipped, not sent late."""
-        with self._lock:
-            self._stall_ns = round(duration_s * 1e9)
-        self._wake()
+        self._requests.append(lambda slot_ns: self._stall(slot_ns + round(duration_s * 1e9)))
 
     def drop_link(self, down_s: float) -> None:
         """Close the pty now and open a new one behind ``port_path`` after ``down_s``."""
-        with self._lock:
-            self._drop_ns = round(down_s * 1e9)
-        self._wake()
+        self._requests.append(lambda slot_ns: self._drop(slot_ns + round(down_s * 1e9)))
 
-    # -- the emulator thread -----------------------------------------------------------------
+    # -- internals (the loop's thread) -------------------------------------------------------
 
-    def _wake(self) -> None:
-        if self._wake_w >= 0:
-            os.write(self._wake_w, b"\0")
+    def _garbage(self, data: bytes) -> None:
+        if self._pty is not None:
+            self._out.put(data, frame=False)
+            self.garbage_bytes += len(data)
 
-    def _run(self) -> None:
-        period = self._period_ns
-        stall_until_ns = 0
-        while not self._stop.is_set():
-            now = time.monotonic_ns()
-            with self._lock:
-                drop_ns, self._drop_ns = self._drop_ns, None
-                stall_ns, self._stall_ns = self._stall_ns, 0
-            if stall_ns:
-                stall_until_ns = now + stall_ns
-                self._counts.stalls += 1
-            if drop_ns is not None:
-                self._link_down(now + drop_ns)
-            if self._pty is None and self._up_at_ns is not None and now >= self._up_at_ns:
-                self._pty = _Pty(self.port_path)
-                self._up_at_ns = None
-            sending = self._streaming and self._pty is not None and now >= stall_until_ns
-            if sending and now >= self._next_ns:
-                late_slots = (now - self._next_ns) // period
-                if late_slots >= MAX_LATE_SLOTS:
-                    self._next_ns += late_slots * period
-                    self._counts.slots_skipped += late_slots
-                self._send(self._next_ns)
-                self._next_ns += period
-                continue
-            wait_ns = self._next_ns - now if sending else _IDLE_WAIT_NS
-            if self._pty is None and self._up_at_ns is not None:
-                wait_ns = min(wait_ns, self._up_at_ns - now)
-            elif not sending and stall_until_ns > now:
-                wait_ns = min(wait_ns, stall_until_ns - now)
-            self._wait(wait_ns)
+    def _stall(self, until_ns: int) -> None:
+        self._stall_until_ns = until_ns
+        self.stalls += 1
 
-    def _wait(self, wait_ns: int) -> None:
-        fds = [self._wake_r] if self._pty is None else [self._wake_r, self._pty.master]
-        ready, _, _ = select.select(fds, [], [], max(wait_ns, 0) / 1e9)
-        if self._wake_r in ready:
-            os.read(self._wake_r, 4096)
-        if self._pty is not None and self._pty.master in ready:
-            self._read_commands(self._pty.master)
+    def _drop(self, up_at_ns: int) -> None:
+        if self._pty is not None:
+            self.link_drops += 1
+        self._link_down()
+        self._up_at_ns = up_at_ns
 
-    def _read_commands(self, master: int) -> None:
+    def _link_up(self) -> None:
+        assert self._loop is not None
+        pty = self._pty = _Pty(self.port_path)
+        self._out = Outbox(pty.write, MAX_BACKLOG_BYTES)
+        self._up_at_ns = None
+        self._loop.watch(pty.master, self._read_commands)
+
+    def _link_down(self) -> None:
+        if self._pty is not None:
+            if self._loop is not None:
+                self._loop.unwatch(self._pty.master)
+            self._out.discard()
+            self._sent_before += self._out.frames_sent
+            self._dropped_before += self._out.frames_dropped
+            self._out = Outbox(lambda data: 0, MAX_BACKLOG_BYTES)
+            self._pty.close(self.port_path)
+            self._pty = None
+        self._streaming = False  # the sensor restarts and waits for the start command
+        self._rx.clear()
+        self._tail = b""
+
+    def _read_commands(self) -> None:
+        assert self._pty is not None
         try:
-            self._rx += os.read(master, 4096)
+            self._rx += os.read(self._pty.master, 4096)
         except BlockingIOError:
             return
         rx = self._rx
@@ -324,72 +294,42 @@ class FtEmulator:
             if rx.startswith(START_COMMAND):
                 if not self._streaming:
                     self._streaming = True
-                    self._counts.starts += 1
-                    elapsed = time.monotonic_ns() - self._t0_ns
-                    self._next_ns = self._t0_ns - (-elapsed // self._period_ns) * self._period_ns
+                    self.starts += 1
                 del rx[: len(START_COMMAND)]
             elif rx.startswith(STOP_COMMAND):
                 if self._streaming:
                     self._streaming = False
-                    self._counts.stops += 1
+                    self.stops += 1
                 del rx[: len(STOP_COMMAND)]
             else:
                 del rx[0]  # not a command: the sensor ignores it
 
-    def _link_down(self, up_at_ns: int) -> None:
-        if self._pty is not None:
-            self._pty.close(self.port_path)
-            self._pty = None
-            self._counts.link_drops += 1
-        self._streaming = False  # the sensor restarts and waits for the start command
-        self._rx.clear()
-        self._tx.clear()
-        self._up_at_ns = up_at_ns
-
     def _send(self, slot_ns: int) -> None:
         t_s = (slot_ns - self._t0_ns) * 1e-9
         values = self._device_values(t_s)
-        with self._lock:
-            garbage, self._garbage = self._garbage, bytearray()
-            split, self._split_left = self._split_left > 0, max(self._split_left - 1, 0)
-            header, self._header_left = self._header_left > 0, max(self._header_left - 1, 0)
-            bad, self._bad_left = self._bad_left > 0, max(self._bad_left - 1, 0)
-        counts = self._counts
-        if header:
+        if self._header_left:
+            self._header_left -= 1
             values = [_with_header_bytes(v) for v in values]
-            counts.header_frames += 1
-        if bad:
-            values[2] = _BAD_VALUES[counts.bad_value_frames % len(_BAD_VALUES)]
-            counts.bad_value_frames += 1
-        if len(self._tx) > MAX_BACKLOG_BYTES:
-            counts.frames_dropped += 1
-            return
+            self.header_frames += 1
+        if self._bad_left:
+            self._bad_left -= 1
+            values[2] = _BAD_VALUES[self.bad_value_frames % len(_BAD_VALUES)]
+            self.bad_value_frames += 1
         frame = FRAME.pack(HEADER, *values, TAIL)
-        if garbage:
-            self._tx += garbage
-            counts.garbage_bytes += len(garbage)
-        if split:
+        if self._split_left:
+            self._split_left -= 1
             cut = int(self._rng.integers(1, len(frame)))
-            self._tx += frame[:cut]
-            self._flush()
-            time.sleep(self.config.split_pause_s)
-            frame = frame[cut:]
-            counts.split_frames += 1
-        self._tx += frame
-        sent_ns = time.monotonic_ns()
-        self._flush()
-        counts.frames_sent += 1
-        if self._on_sent is not None:
+            self._out.put(frame[:cut], frame=False)
+            self._tail = frame[cut:]
+            self.split_count += 1
+            return
+        if self._on_sent is None:
+            self._out.put(frame)
+            return
+        sent, sent_ns = self._out.frames_sent, time.monotonic_ns()
+        self._out.put(frame)
+        if self._out.frames_sent > sent:
             self._on_sent(t_s, sent_ns)
-
-    def _flush(self) -> None:
-        if self._pty is None:
-            return
-        try:
-            written = os.write(self._pty.master, self._tx)
-        except BlockingIOError:
-            return
-        del self._tx[:written]
 
     def _device_values(self, t_s: float) -> list[float]:
         """Source + bias + noise + tool gravity at ``t_s``, in device units (kgf, kgf*m)."""
@@ -400,7 +340,12 @@ class FtEmulator:
         noise = self._noise.pop()
         tool: Sequence[float] = (0.0,) * 6
         if self._orientation is not None:
-            tool = (self._tool_map @ (self._gravity @ self._orientation(t_s))).tolist()
+            (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = self._orientation(t_s).tolist()
+            gx, gy, gz = self._gravity  # gravity in the sensor frame: R^T g
+            sx = r00 * gx + r10 * gy + r20 * gz
+            sy = r01 * gx + r11 * gy + r21 * gz
+            sz = r02 * gx + r12 * gy + r22 * gz
+            tool = [m0 * sx + m1 * sy + m2 * sz for m0, m1, m2 in self._tool_map]
         scale = self._scale
         return [
             (e + b + n + g) * scale

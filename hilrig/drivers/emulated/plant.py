@@ -5,20 +5,54 @@ Each joint is a position servo: a critically damped second-order tracker of its 
 kept inside them. The servo follows targets only in mode TRACK and only while the Modbus
 watchdog counter keeps changing: once no new count has arrived for ``watchdog_s`` it holds the
 position it has (status HOLDING), as a real controller does when its master goes silent. Mode
-STOP latches a protective stop until a HOLD or TRACK write clears it. Thread-safe: targets
-arrive from the Modbus server's thread, ``advance`` runs on the state stream's thread.
+STOP latches a protective stop until a HOLD or TRACK write clears it. Single-threaded (the rig's
+slot loop); the integration is one compiled kernel call per ``advance``.
 """
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from hilrig.drivers.joint_targets_map import JOINTS, JointTargets, Mode
 from hilrig.drivers.robot_state_codec import RobotState, RobotStatus
 from hilrig.robot.limits import JointLimits
+
+MAX_SUBSTEPS = 200  # per advance: at most 0.1 s at the default substep, no catch-up bursts
+
+Vector = NDArray[np.float64]
+
+
+@njit(cache=True)
+def _integrate(
+    q: Vector,
+    qd: Vector,
+    qdd: Vector,
+    target: Vector,
+    hold: bool,
+    limits: NDArray[np.float64],
+    wn: float,
+    dt: float,
+    steps: int,
+) -> None:
+    """``steps`` sub-steps of the saturated servos, in place; ``hold`` tracks q itself.
+
+    ``limits`` rows: q_min, q_max, qd_max, qdd_max.
+    """
+    for _ in range(steps):
+        for j in range(q.shape[0]):
+            goal = q[j] if hold else target[j]
+            acc = wn * wn * (goal - q[j]) - 2.0 * wn * qd[j]
+            acc = min(max(acc, -limits[3, j]), limits[3, j])
+            vel = min(max(qd[j] + acc * dt, -limits[2, j]), limits[2, j])
+            pos = q[j] + vel * dt
+            if pos < limits[0, j] or pos > limits[1, j]:
+                pos = min(max(pos, limits[0, j]), limits[1, j])
+                vel = 0.0
+            q[j] = pos
+            qd[j] = vel
+            qdd[j] = acc
 
 
 class JointServoPlant:
@@ -28,15 +62,20 @@ class JointServoPlant:
         self,
         limits: JointLimits,
         *,
-        q0_rad: NDArray[np.float64] | None = None,
+        q0_rad: Vector | None = None,
         bandwidth_rad_s: float = 60.0,
         watchdog_s: float = 0.05,
         substep_s: float = 0.0005,
     ) -> None:
-        self._q_min = limits.lower_rad()
-        self._q_max = limits.upper_rad()
-        self._qd_max = np.array(limits.velocity_max_rad_s)
-        self._qdd_max = np.array(limits.acceleration_max_rad_s2)
+        self._limits = np.array(
+            [
+                limits.lower_rad(),
+                limits.upper_rad(),
+                limits.velocity_max_rad_s,
+                limits.acceleration_max_rad_s2,
+            ],
+            dtype=np.float64,
+        )
         self._q = np.zeros(JOINTS) if q0_rad is None else np.array(q0_rad, dtype=np.float64)
         self._qd = np.zeros(JOINTS)
         self._qdd = np.zeros(JOINTS)
@@ -44,27 +83,26 @@ class JointServoPlant:
         self._wn = bandwidth_rad_s
         self._watchdog_ns = round(watchdog_s * 1e9)
         self._substep_s = substep_s
+        self._substep_ns = round(substep_s * 1e9)
         self._mode = Mode.HOLD
         self._stopped = False
         self._last_count: int | None = None
         self._last_count_ns: int | None = None
         self._t_ns: int | None = None
         self._was_tracking = False
-        self._lock = threading.Lock()
         self.targets_received = 0
         self.watchdog_trips = 0
 
     def set_targets(self, targets: JointTargets, now_ns: int) -> None:
-        """Take one Modbus write (any thread); targets are clamped to the position limits."""
-        with self._lock:
-            self.targets_received += 1
-            if targets.sequence != self._last_count:
-                self._last_count = targets.sequence
-                self._last_count_ns = now_ns
-            self._mode = targets.mode
-            self._stopped = targets.mode is Mode.STOP
-            if targets.mode is Mode.TRACK:
-                self._target = np.clip(np.asarray(targets.q_rad), self._q_min, self._q_max)
+        """Take one Modbus write; targets are clamped to the position limits."""
+        self.targets_received += 1
+        if targets.sequence != self._last_count:
+            self._last_count = targets.sequence
+            self._last_count_ns = now_ns
+        self._mode = targets.mode
+        self._stopped = targets.mode is Mode.STOP
+        if targets.mode is Mode.TRACK:
+            self._target = np.clip(np.asarray(targets.q_rad), self._limits[0], self._limits[1])
 
     def tracking(self, now_ns: int) -> bool:
         """True while the servo follows its targets (TRACK, fresh watchdog count, no stop)."""
@@ -75,52 +113,49 @@ class JointServoPlant:
 
     def advance(self, now_ns: int) -> None:
         """Integrate from the last call to ``now_ns`` (host monotonic ns)."""
-        with self._lock:
-            if self._t_ns is None:
-                self._t_ns = now_ns
-                return
-            tracking = self.tracking(now_ns)
-            if self._was_tracking and not tracking and self._mode is Mode.TRACK:
-                self.watchdog_trips += 1  # targets stopped coming: hold
-            self._was_tracking = tracking
-            steps = int((now_ns - self._t_ns) / (self._substep_s * 1e9))
-            for _ in range(min(steps, 200)):  # at most 0.1 s per call: no catch-up bursts
-                # holding servos to the current position: the arm decelerates and stays
-                self._substep(self._target if tracking else self._q)
-            self._t_ns += round(steps * self._substep_s * 1e9)
+        if self._t_ns is None:
+            self._t_ns = now_ns
+            return
+        tracking = self.tracking(now_ns)
+        if self._was_tracking and not tracking and self._mode is Mode.TRACK:
+            self.watchdog_trips += 1  # targets stopped coming: hold
+        self._was_tracking = tracking
+        steps = (now_ns - self._t_ns) // self._substep_ns
+        if steps <= 0:
+            return
+        # holding servos track the current position: the arm decelerates and stays
+        _integrate(
+            self._q,
+            self._qd,
+            self._qdd,
+            self._target,
+            not tracking,
+            self._limits,
+            self._wn,
+            self._substep_s,
+            min(steps, MAX_SUBSTEPS),
+        )
+        self._t_ns += steps * self._substep_ns
 
-    def _substep(self, target: NDArray[np.float64]) -> None:
-        dt = self._substep_s
-        qdd = self._wn**2 * (target - self._q) - 2.0 * self._wn * self._qd
-        qdd = np.clip(qdd, -self._qdd_max, self._qdd_max)
-        qd = np.clip(self._qd + qdd * dt, -self._qd_max, self._qd_max)
-        q = self._q + qd * dt
-        at_limit = (q < self._q_min) | (q > self._q_max)
-        self._q = np.clip(q, self._q_min, self._q_max)
-        self._qd = np.where(at_limit, 0.0, qd)
-        self._qdd = qdd
-
-    def state(self, sequence: int, device_t_ns: int, torque_nm: NDArray[np.float64]) -> RobotState:
+    def state(self, sequence: int, device_t_ns: int, torque_nm: tuple[float, ...]) -> RobotState:
         """The joint-state frame to stream now, with measured joint torques (N*m)."""
-        with self._lock:
-            status = RobotStatus.ENABLED
-            if self._stopped:
-                status |= RobotStatus.PROTECTIVE_STOP
-            elif self._t_ns is not None and self.tracking(self._t_ns):
-                status |= RobotStatus.TRACKING
-            else:
-                status |= RobotStatus.HOLDING
-            return RobotState(
-                sequence,
-                device_t_ns,
-                tuple(float(v) for v in self._q),
-                tuple(float(v) for v in self._qd),
-                tuple(float(v) for v in torque_nm),
-                status,
-            )
+        status = RobotStatus.ENABLED
+        if self._stopped:
+            status |= RobotStatus.PROTECTIVE_STOP
+        elif self._t_ns is not None and self.tracking(self._t_ns):
+            status |= RobotStatus.TRACKING
+        else:
+            status |= RobotStatus.HOLDING
+        return RobotState(
+            sequence,
+            device_t_ns,
+            tuple(self._q.tolist()),
+            tuple(self._qd.tolist()),
+            torque_nm,
+            status,
+        )
 
     @property
-    def q_rad(self) -> NDArray[np.float64]:
+    def q_rad(self) -> Vector:
         """Joint positions now (a copy)."""
-        with self._lock:
-            return self._q.copy()
+        return self._q.copy()

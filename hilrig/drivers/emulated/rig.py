@@ -4,13 +4,21 @@ One object owns the pieces, each on the transport the real device uses:
 
 - the wrist F/T sensor on a pty (``FtEmulator``), its wrench from the scenario at the sensor's
   pose (forward kinematics of the plant), plus bias, noise and the tool's gravity;
-- the joint-state TCP stream (``EmulatedRobotStateServer``), which advances the plant and reports
-  q, qd and the joint modules' torques (scenario plus noise);
+- the joint-state TCP stream (``EmulatedRobotStateServer``): q, qd and the joint modules'
+  torques (scenario plus noise);
 - the Modbus RTU-over-TCP joint-target endpoint (``EmulatedModbusServer``), which feeds the
   plant's servos.
 
-Sockets bind 127.0.0.1 on OS-chosen ports unless told otherwise; ``start()`` returns the
-endpoints. Faults are injected on the parts (``rig.ft``, ``rig.robot_state``, ``rig.modbus``).
+One thread runs them all in a :class:`SlotLoop`: every 1 ms slot advances the plant, computes
+the sensor's pose once, sends the joint-state frame, then the F/T frame (so a reader woken by the
+F/T frame already has that period's joint state); between slots the loop sleeps in select() and
+answers start/stop commands, new clients and Modbus writes as they arrive.
+
+``open()`` binds (127.0.0.1, OS-chosen ports unless told otherwise) and returns the endpoints,
+``run()`` runs the loop in the calling thread until ``request_stop()``, ``close()`` closes the
+devices; ``start()``/``stop()`` (or ``with``) do the same with the loop in a thread of its own.
+Faults are injected on the parts (``rig.ft``, ``rig.robot_state``, ``rig.modbus``) from any
+thread; ``counters()`` says exactly what was sent.
 """
 
 from __future__ import annotations
@@ -20,17 +28,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hilrig.drivers.emulated.ft_emulator import EmulatorConfig, FtEmulator
 from hilrig.drivers.emulated.modbus_server import EmulatedModbusServer
 from hilrig.drivers.emulated.plant import JointServoPlant
 from hilrig.drivers.emulated.robot_state_server import EmulatedRobotStateServer
 from hilrig.drivers.emulated.scenarios import Scenario, scenario
+from hilrig.drivers.emulated.slots import SlotLoop
 from hilrig.drivers.gravity import ToolLoad
 from hilrig.drivers.joint_targets_map import JointTargets
 from hilrig.drivers.robot_state_codec import RobotState
 from hilrig.robot import RobotModel
+
+_NOISE_BLOCK = 1024
 
 HOME_Q_RAD = (0.0, -0.3, 1.6, 0.3, np.pi / 2, 0.0)  # tool 0.58 m out, 0.29 m up, pointing down
 
@@ -71,20 +81,24 @@ class RigConfig:
     seed: int = 0
 
 
-class _SensorPose:
-    """FK of the plant's current q, computed once per F/T frame (emulator thread only)."""
+@dataclass(frozen=True)
+class RigCounters:
+    """What the rig did since it opened: frames and writes exactly, and its slots."""
 
-    def __init__(self, plant: JointServoPlant) -> None:
-        self._plant = plant
-        self._model = RobotModel()
-        self._t_s = -1.0
-        self._pose = np.eye(4)
-
-    def at(self, t_s: float) -> NDArray[np.float64]:
-        if t_s != self._t_s:
-            self._pose = self._model.fk(self._plant.q_rad)
-            self._t_s = t_s
-        return self._pose
+    ft_frames_sent: int  # F/T frames handed whole to the pty
+    ft_frames_dropped: int  # not sent: the pty was full, or closed under them
+    ft_slots_skipped: int  # streaming slots without a frame (stalls)
+    ft_starts: int  # start commands taken
+    ft_stops: int  # stop commands taken
+    joint_frames_sent: int  # joint-state frames handed whole to client sockets (all clients)
+    joint_frames_dropped: int  # not sent to a slow client, or unsent when its link closed
+    joint_ticks: int  # joint-state frames produced
+    modbus_writes: int  # target writes applied to the plant (and acknowledged)
+    modbus_exceptions_sent: int  # injected exception replies
+    modbus_rejected: int  # writes refused: ILLEGAL_ADDRESS or ILLEGAL_VALUE
+    slots: int  # slots run
+    slots_late: int  # slots begun a period or more after their deadline
+    slots_skipped: int  # slots not run at all (the loop fell more than MAX_BEHIND behind)
 
 
 class EmulatedRig:
@@ -99,16 +113,19 @@ class EmulatedRig:
     ) -> None:
         self.config = RigConfig() if config is None else config
         self.scenario = scenario(volunteer) if isinstance(volunteer, str) else volunteer
+        self._model = RobotModel()
         self.plant = JointServoPlant(
-            RobotModel().limits, q0_rad=np.asarray(self.config.q0_rad, dtype=np.float64)
+            self._model.limits, q0_rad=np.asarray(self.config.q0_rad, dtype=np.float64)
         )
-        self._pose = _SensorPose(self.plant)
+        self._pose = self._model.fk(self.plant.q_rad)
         self._rng = np.random.default_rng(self.config.seed)
-        self._t0_ns = 0
+        self._noise: list[list[float]] = []
+        self._slot_t_s = 0.0
+        self.loop = SlotLoop(round(1e9 / self.config.rate_hz), self._slot)
         self.ft = FtEmulator(
             self._wrench,
             config=self.config.ft,
-            orientation=lambda t_s: self._pose.at(t_s)[:3, :3],
+            orientation=lambda t_s: self._pose[:3, :3],
             port_path=port_path,
         )
         self.robot_state = EmulatedRobotStateServer(
@@ -116,18 +133,38 @@ class EmulatedRig:
         )
         self.modbus = EmulatedModbusServer(self._targets, host=self.config.host)
 
-    def start(self) -> RigEndpoints:
-        self._t0_ns = time.monotonic_ns()
-        self.plant.advance(self._t0_ns)
-        self.modbus.start()
-        self.robot_state.start()
-        self.ft.start()
+    def open(self) -> RigEndpoints:
+        """Bind every device to the loop (not running yet); returns the endpoints."""
+        self.loop.t0_ns = time.monotonic_ns()
+        self.plant.advance(self.loop.t0_ns)
+        for device in (self.modbus, self.robot_state, self.ft):
+            device.attach(self.loop)
         return self.endpoints
 
+    def run(self) -> None:
+        """Run the slot loop in this thread until ``request_stop()``."""
+        self.loop.run()
+
+    def request_stop(self) -> None:
+        """Make ``run()`` return after the current slot (any thread, or a signal handler)."""
+        self.loop.stop()
+
+    def close(self) -> None:
+        """Close the devices (after ``run()`` has returned)."""
+        self.ft.close()
+        self.robot_state.close()
+        self.modbus.close()
+
+    def start(self) -> RigEndpoints:
+        """``open()`` and run the loop in a thread of its own."""
+        endpoints = self.open()
+        self.loop.start_thread("emulated-rig")
+        return endpoints
+
     def stop(self) -> None:
-        self.ft.stop()
-        self.robot_state.stop()
-        self.modbus.stop()
+        """Stop the loop's thread and close the devices."""
+        self.loop.join()
+        self.close()
 
     def __enter__(self) -> RigEndpoints:
         return self.start()
@@ -142,18 +179,50 @@ class EmulatedRig:
             str(self.ft.port_path), (host, self.robot_state.port), (host, self.modbus.port)
         )
 
+    def counters(self) -> RigCounters:
+        """A snapshot of what the rig has done."""
+        ft, state, loop = self.ft.stats(), self.robot_state.stats, self.loop
+        return RigCounters(
+            ft_frames_sent=ft.frames_sent,
+            ft_frames_dropped=ft.frames_dropped,
+            ft_slots_skipped=ft.slots_skipped,
+            ft_starts=ft.starts,
+            ft_stops=ft.stops,
+            joint_frames_sent=state.frames_sent,
+            joint_frames_dropped=state.frames_dropped,
+            joint_ticks=state.ticks,
+            modbus_writes=self.modbus.writes,
+            modbus_exceptions_sent=self.modbus.exceptions_sent,
+            modbus_rejected=self.modbus.rejected,
+            slots=loop.slots,
+            slots_late=loop.slots_late,
+            slots_skipped=loop.slots_skipped,
+        )
+
+    def _slot(self, slot_ns: int, now_ns: int) -> None:
+        self.plant.advance(now_ns)
+        self._pose = self._model.fk(self.plant.q_rad)
+        self._slot_t_s = (slot_ns - self.loop.t0_ns) * 1e-9
+        self.robot_state.tick(slot_ns)
+        self.ft.tick(slot_ns)
+        self.modbus.tick(slot_ns)
+
     def _wrench(self, t_s: float) -> tuple[float, ...]:
-        return tuple(self.scenario.wrench_in_sensor(t_s, self._pose.at(t_s)).tolist())
+        return self.scenario.wrench_in_sensor(t_s, self._pose)
 
     def _targets(self, targets: JointTargets) -> None:
         self.plant.set_targets(targets, time.monotonic_ns())
 
     def _state(self, sequence: int) -> RobotState:
-        now_ns = time.monotonic_ns()
-        self.plant.advance(now_ns)
-        t_s = (now_ns - self._t0_ns) / 1e9
-        noise = self._rng.normal(scale=self.config.joint_torque_noise_nm, size=6)
-        torque = self.scenario.joint_torque(t_s) + noise
+        if not self._noise:
+            scale = self.config.joint_torque_noise_nm
+            self._noise = self._rng.normal(scale=scale, size=(_NOISE_BLOCK, 6)).tolist()
+        noise = self._noise.pop()
+        torque = self.scenario.joint_torque(self._slot_t_s)
         # the emulated controller's clock is this host's monotonic clock (shared by every
         # process here), so a reader can measure the stream's latency from device time
-        return self.plant.state(sequence, now_ns, torque)
+        return self.plant.state(
+            sequence,
+            time.monotonic_ns(),
+            tuple(t + n for t, n in zip(torque, noise, strict=True)),
+        )

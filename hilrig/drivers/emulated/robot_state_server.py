@@ -1,45 +1,57 @@
-"""The robot's joint-state TCP stream, emulated: frames at a fixed rate to every client.
+"""The robot's joint-state TCP stream, emulated: one frame per slot to every client.
 
-Binds 127.0.0.1 with an OS-chosen port unless told otherwise. One thread accepts clients and
-streams ``source(sequence)`` as robot_state_codec frames, paced by absolute deadlines so the
-rate does not drift. A client too slow to take its bytes loses whole frames (counted), never
-half of one. Faults: ``drop_links()`` closes every client socket, ``stall(s)`` stops sending,
-``inject(bytes)`` sends garbage between frames.
+Binds 127.0.0.1 with an OS-chosen port unless told otherwise. A device of a :class:`SlotLoop`
+(or alone with ``start()``/``stop()``): the loop accepts clients as they connect, and each
+``tick`` sends ``source(sequence)`` as a robot_state_codec frame to every client (the sequence
+counts slots, so a stall or a skipped slot shows as a gap). A client too slow to take its bytes
+loses whole frames (counted), never half of one; a frame counts as sent once the kernel has all
+of it. Faults, from any thread, applied at the next slot: ``drop_links(down_s)`` closes every
+client socket, ``stall(s)`` stops sending, ``inject(bytes)`` sends garbage between frames.
 """
 
 from __future__ import annotations
 
+import contextlib
 import socket
-import threading
-import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from hilrig.drivers.emulated.outbox import Outbox
+from hilrig.drivers.emulated.slots import Device, SlotLoop
 from hilrig.drivers.robot_state_codec import RobotState, encode
 
 MAX_BACKLOG_BYTES = 64 * 1024  # per client: beyond this, frames are dropped for that client
+CLOSE_FLUSH_S = 0.5  # at close, how long a client's unsent frames may take to leave
 
 
-@dataclass
+@dataclass(frozen=True)
 class ServerStats:
     """Counters since start."""
 
-    ticks: int = 0  # frames produced (sent to every connected client, if any)
-    frames_sent: int = 0  # frames queued to clients, summed over clients
-    frames_dropped: int = 0  # not sent to a slow client
-    clients_accepted: int = 0
-    links_dropped: int = 0
-    late_ticks: int = 0  # ticks that started after their deadline had passed by > 1 period
+    ticks: int  # frames produced (sent to every connected client, if any)
+    frames_sent: int  # frames handed whole to client sockets, summed over clients
+    frames_dropped: int  # not sent to a slow client, or unsent when its link closed
+    clients_accepted: int
+    links_dropped: int
 
 
 class _Client:
     def __init__(self, sock: socket.socket) -> None:
         self.sock = sock
-        self.backlog = bytearray()
+        self.out = Outbox(self._write, MAX_BACKLOG_BYTES)
+
+    def _write(self, data: bytes | bytearray) -> int:
+        try:
+            return self.sock.send(data)
+        except BlockingIOError:
+            return 0
 
 
-class EmulatedRobotStateServer:
-    """Streams joint-state frames at ``rate_hz`` over TCP; start()/stop() or a with block."""
+class EmulatedRobotStateServer(Device):
+    """Streams joint-state frames, one per slot, over TCP to every connected client."""
+
+    thread_name = "robot-state"
 
     def __init__(
         self,
@@ -50,79 +62,101 @@ class EmulatedRobotStateServer:
         port: int = 0,
     ) -> None:
         self._source = source
-        self._period_ns = round(1e9 / rate_hz)
-        self._listener = socket.create_server((host, port), reuse_port=False)
+        self.standalone_period_ns = round(1e9 / rate_hz)
+        self._listener = socket.create_server((host, port))
         self._listener.setblocking(False)
         self.port: int = self._listener.getsockname()[1]
-        self._clients: list[_Client] = []
-        self._stop = threading.Event()
-        self._lock = threading.Lock()
+        self._loop: SlotLoop | None = None
+        self._clients: dict[int, _Client] = {}
+        self._requests: deque[Callable[[int], None]] = deque()
+        self._sequence = 0
         self._stall_until_ns = 0
-        self._garbage = bytearray()
-        self._drop = False
-        self._down_until_ns = 0
-        self._thread = threading.Thread(target=self._run, daemon=True, name="robot-state")
-        self.stats = ServerStats()
+        self._down_until_ns: int | None = None
+        self._garbage = b""
+        self._ticks = self._accepted = self._links_dropped = 0
+        self._sent_before = self._dropped_before = 0  # by clients since closed
 
-    def start(self) -> None:
-        self._thread.start()
+    @property
+    def stats(self) -> ServerStats:
+        """A snapshot of the counters."""
+        clients = list(self._clients.values())
+        return ServerStats(
+            self._ticks,
+            self._sent_before + sum(c.out.frames_sent for c in clients),
+            self._dropped_before + sum(c.out.frames_dropped for c in clients),
+            self._accepted,
+            self._links_dropped,
+        )
 
-    def stop(self) -> None:
-        self._stop.set()
-        self._thread.join(timeout=5)
-        for client in self._clients:
-            client.sock.close()
+    def attach(self, loop: SlotLoop) -> None:
+        """Accept clients in ``loop`` from now on."""
+        self._loop = loop
+        loop.watch(self._listener.fileno(), self._accept)
+
+    def tick(self, slot_ns: int) -> None:
+        """Apply requested faults, then send this slot's frame to every client."""
+        while self._requests:
+            self._requests.popleft()(slot_ns)
+        if self._down_until_ns is not None and slot_ns >= self._down_until_ns:
+            self._down_until_ns = None
+            self.attach(self._require_loop())  # connections waiting in the backlog come in
+        sequence = self._sequence
+        self._sequence += 1
+        if slot_ns < self._stall_until_ns or self._down_until_ns is not None:
+            return
+        frame = encode(self._source(sequence))
+        self._ticks += 1
+        garbage, self._garbage = self._garbage, b""
+        for fd, client in list(self._clients.items()):
+            try:
+                if garbage:
+                    client.out.put(garbage, frame=False)
+                client.out.put(frame)
+            except OSError:
+                self._close(fd)
+
+    def close(self) -> None:
+        """Give each client's unsent frames a moment to leave, then close every socket."""
+        loop = self._require_loop()
+        loop.unwatch(self._listener.fileno())
+        for client in self._clients.values():
+            client.sock.settimeout(CLOSE_FLUSH_S)
+            with contextlib.suppress(OSError):
+                while client.out.unsent:
+                    client.out.flush()
+        for fd in list(self._clients):
+            self._close(fd)
         self._listener.close()
 
-    def __enter__(self) -> EmulatedRobotStateServer:
-        self.start()
-        return self
-
-    def __exit__(self, *_: object) -> None:
-        self.stop()
+    # -- faults (any thread) -----------------------------------------------------------------
 
     def drop_links(self, down_s: float = 0.0) -> None:
         """Close every client connection; for ``down_s`` the robot then stays silent (new
         connections wait in the listen backlog), like a cable pulled and plugged back."""
-        with self._lock:
-            self._drop = True
-            self._down_until_ns = time.monotonic_ns() + round(down_s * 1e9)
+        self._requests.append(lambda slot_ns: self._drop(slot_ns + round(down_s * 1e9)))
 
     def stall(self, duration_s: float) -> None:
         """Send nothing for ``duration_s`` (frames of that time are skipped, not queued)."""
-        with self._lock:
-            self._stall_until_ns = time.monotonic_ns() + round(duration_s * 1e9)
+        self._requests.append(
+            lambda slot_ns: setattr(self, "_stall_until_ns", slot_ns + round(duration_s * 1e9))
+        )
 
     def inject(self, garbage: bytes) -> None:
         """Send ``garbage`` to every client before the next frame."""
-        with self._lock:
-            self._garbage += garbage
+        self._requests.append(lambda _: setattr(self, "_garbage", self._garbage + garbage))
 
-    def _run(self) -> None:
-        sequence = 0
-        deadline = time.monotonic_ns()
-        while not self._stop.is_set():
-            with self._lock:
-                now = time.monotonic_ns()
-                down = now < self._down_until_ns
-                stalled = now < self._stall_until_ns or down
-                extra, self._garbage = bytes(self._garbage), bytearray()
-                drop, self._drop = self._drop, False
-            if drop:
-                self._close_all()
-            if not down:
-                self._accept()
-            if not stalled:
-                self._send(extra + encode(self._source(sequence)))
-                self.stats.ticks += 1
-            sequence += 1
-            deadline += self._period_ns
-            now = time.monotonic_ns()
-            if now - deadline > self._period_ns:
-                self.stats.late_ticks += 1
-                deadline = now  # do not burst to catch up
-            else:
-                self._stop.wait(max(0, deadline - now) / 1e9)
+    # -- internals (the loop's thread) -------------------------------------------------------
+
+    def _require_loop(self) -> SlotLoop:
+        assert self._loop is not None, "not attached to a slot loop"
+        return self._loop
+
+    def _drop(self, up_at_ns: int) -> None:
+        for fd in list(self._clients):
+            self._close(fd)
+            self._links_dropped += 1
+        self._down_until_ns = up_at_ns
+        self._require_loop().unwatch(self._listener.fileno())
 
     def _accept(self) -> None:
         try:
@@ -131,28 +165,26 @@ class EmulatedRobotStateServer:
             return
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        self._clients.append(_Client(sock))
-        self.stats.clients_accepted += 1
+        fd = sock.fileno()
+        self._clients[fd] = _Client(sock)
+        self._accepted += 1
+        self._require_loop().watch(fd, lambda: self._read(fd))
 
-    def _close_all(self) -> None:
-        for client in self._clients:
-            client.sock.close()
-            self.stats.links_dropped += 1
-        self._clients.clear()
+    def _read(self, fd: int) -> None:
+        """A client sends nothing; readable means it closed (or sent bytes to ignore)."""
+        try:
+            data = self._clients[fd].sock.recv(4096)
+        except BlockingIOError:
+            return
+        except OSError:
+            data = b""
+        if not data:
+            self._close(fd)
 
-    def _send(self, frame: bytes) -> None:
-        for client in list(self._clients):
-            if len(client.backlog) + len(frame) > MAX_BACKLOG_BYTES:
-                self.stats.frames_dropped += 1
-            else:
-                client.backlog += frame
-                self.stats.frames_sent += 1
-            try:
-                sent = client.sock.send(client.backlog)
-            except BlockingIOError:
-                continue
-            except OSError:
-                client.sock.close()
-                self._clients.remove(client)
-                continue
-            del client.backlog[:sent]
+    def _close(self, fd: int) -> None:
+        client = self._clients.pop(fd)
+        self._require_loop().unwatch(fd)
+        client.out.discard()
+        self._sent_before += client.out.frames_sent
+        self._dropped_before += client.out.frames_dropped
+        client.sock.close()

@@ -1,8 +1,10 @@
 """Volunteer models of the emulated rig: what a person does to the robot, over time.
 
 A scenario gives the external wrench on the wrist sensor (sensor frame, N and N*m) given the
-time and the sensor's pose, and the external joint torques (N*m) the joint modules measure.
-Times are seconds since the rig started; ``period_s`` repeats the collision for long sessions.
+time and the sensor's pose, and the external joint torques (N*m) the joint modules measure, as
+tuples of six floats: the rig calls them every 1 ms slot, so they are scalar code (the paper's
+profiles evaluated segment by segment, bit-identical to their vectorised form). Times are seconds
+since the rig started; ``period_s`` repeats the collision for long sessions.
 
 - ``paper-end-effector``: eq. 15-17 at the tool (the paper applies them in the end-effector
   frame), collision from 4 s to 6 s.
@@ -14,6 +16,7 @@ Times are seconds since the rig started; ``period_s`` repeats the collision for 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -22,9 +25,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hilrig.errors import HilrigError
-from hilrig.paper.profiles import end_effector_force, joint_torque
+from hilrig.paper.profiles import BODY_PROFILES, END_EFFECTOR_PROFILES, Profile
 
-ZERO6 = np.zeros(6)
+Wrench = tuple[float, float, float, float, float, float]
+ZERO6: Wrench = (0.0,) * 6
+
+
+def _at(profile: Profile, t_s: float) -> float:
+    """``profile(t_s)`` for one time, in scalar code."""
+    segments = profile.segments
+    last = len(segments) - 1
+    for index, seg in enumerate(segments):
+        if seg.start_s <= t_s and (t_s <= seg.stop_s if index == last else t_s < seg.stop_s):
+            return seg.slope * t_s + seg.intercept
+    return 0.0
 
 
 class Scenario(Protocol):
@@ -32,13 +46,11 @@ class Scenario(Protocol):
 
     name: str
 
-    def wrench_in_sensor(
-        self, t_s: float, pose_base_sensor: NDArray[np.float64]
-    ) -> NDArray[np.float64]:
+    def wrench_in_sensor(self, t_s: float, pose_base_sensor: NDArray[np.float64]) -> Wrench:
         """External wrench (Fx, Fy, Fz, Mx, My, Mz) on the wrist sensor, sensor frame."""
         ...
 
-    def joint_torque(self, t_s: float) -> NDArray[np.float64]:
+    def joint_torque(self, t_s: float) -> Wrench:
         """External torque on joints 1..6, N*m."""
         ...
 
@@ -54,14 +66,12 @@ class PaperEndEffector:
     period_s: float | None = None
     name: str = "paper-end-effector"
 
-    def wrench_in_sensor(
-        self, t_s: float, pose_base_sensor: NDArray[np.float64]
-    ) -> NDArray[np.float64]:
-        wrench = np.zeros(6)
-        wrench[:3] = end_effector_force(_local(t_s, self.period_s))[0]
-        return wrench
+    def wrench_in_sensor(self, t_s: float, pose_base_sensor: NDArray[np.float64]) -> Wrench:
+        t = _local(t_s, self.period_s)
+        fx, fy, fz = (_at(profile, t) for profile in END_EFFECTOR_PROFILES)
+        return (fx, fy, fz, 0.0, 0.0, 0.0)
 
-    def joint_torque(self, t_s: float) -> NDArray[np.float64]:
+    def joint_torque(self, t_s: float) -> Wrench:
         return ZERO6
 
 
@@ -72,14 +82,13 @@ class PaperBody:
     period_s: float | None = None
     name: str = "paper-body"
 
-    def wrench_in_sensor(
-        self, t_s: float, pose_base_sensor: NDArray[np.float64]
-    ) -> NDArray[np.float64]:
+    def wrench_in_sensor(self, t_s: float, pose_base_sensor: NDArray[np.float64]) -> Wrench:
         return ZERO6
 
-    def joint_torque(self, t_s: float) -> NDArray[np.float64]:
-        torque: NDArray[np.float64] = joint_torque(_local(t_s, self.period_s))[0]
-        return torque
+    def joint_torque(self, t_s: float) -> Wrench:
+        t = _local(t_s, self.period_s)
+        tau1, tau2 = (_at(profile, t) for profile in BODY_PROFILES)
+        return (tau1, tau2, 0.0, 0.0, 0.0, 0.0)
 
 
 @dataclass
@@ -104,7 +113,7 @@ class HandContact:
     contact_point_in_sensor: tuple[float, float, float] = (0.0, 0.0, 0.1)
     period_s: float | None = 10.0
     name: str = "hand-contact"
-    _origin: NDArray[np.float64] | None = field(default=None, init=False, repr=False)
+    _origin: tuple[float, float, float] | None = field(default=None, init=False, repr=False)
     _last: tuple[float, float] | None = field(default=None, init=False, repr=False)
 
     def hand_offset_m(self, t_s: float) -> float:
@@ -119,17 +128,22 @@ class HandContact:
             return self.depth_m
         return max(-self.gap_m, self.depth_m - self.speed_m_s * (t - travel_s - self.hold_s))
 
-    def wrench_in_sensor(
-        self, t_s: float, pose_base_sensor: NDArray[np.float64]
-    ) -> NDArray[np.float64]:
-        direction = np.asarray(self.direction_in_base) / np.linalg.norm(self.direction_in_base)
-        rotation = pose_base_sensor[:3, :3]
-        contact_in_base = pose_base_sensor[:3, 3] + rotation @ np.asarray(
-            self.contact_point_in_sensor
+    def wrench_in_sensor(self, t_s: float, pose_base_sensor: NDArray[np.float64]) -> Wrench:
+        norm = math.hypot(*self.direction_in_base)
+        ux, uy, uz = (d / norm for d in self.direction_in_base)
+        (r00, r01, r02, px), (r10, r11, r12, py), (r20, r21, r22, pz) = pose_base_sensor[
+            :3
+        ].tolist()
+        cx, cy, cz = self.contact_point_in_sensor
+        contact = (
+            px + r00 * cx + r01 * cy + r02 * cz,
+            py + r10 * cx + r11 * cy + r12 * cz,
+            pz + r20 * cx + r21 * cy + r22 * cz,
         )
         if self._origin is None:
-            self._origin = contact_in_base.copy()
-        tool_along_m = float((contact_in_base - self._origin) @ direction)
+            self._origin = contact
+        ox, oy, oz = self._origin
+        tool_along_m = (contact[0] - ox) * ux + (contact[1] - oy) * uy + (contact[2] - oz) * uz
         penetration_m = self.hand_offset_m(t_s) - tool_along_m
         rate_m_s = 0.0
         if self._last is not None and t_s > self._last[0]:
@@ -138,13 +152,13 @@ class HandContact:
         if penetration_m <= 0.0:
             return ZERO6
         push_n = max(0.0, self.stiffness_n_m * penetration_m + self.damping_n_s_m * rate_m_s)
-        force_in_sensor = rotation.T @ (push_n * direction)
-        wrench = np.empty(6)
-        wrench[:3] = force_in_sensor
-        wrench[3:] = np.cross(np.asarray(self.contact_point_in_sensor), force_in_sensor)
-        return wrench
+        bx, by, bz = push_n * ux, push_n * uy, push_n * uz  # the push in base, into sensor:
+        fx = r00 * bx + r10 * by + r20 * bz
+        fy = r01 * bx + r11 * by + r21 * bz
+        fz = r02 * bx + r12 * by + r22 * bz
+        return (fx, fy, fz, cy * fz - cz * fy, cz * fx - cx * fz, cx * fy - cy * fx)
 
-    def joint_torque(self, t_s: float) -> NDArray[np.float64]:
+    def joint_torque(self, t_s: float) -> Wrench:
         return ZERO6
 
 
@@ -154,12 +168,10 @@ class NoContact:
 
     name: str = "none"
 
-    def wrench_in_sensor(
-        self, t_s: float, pose_base_sensor: NDArray[np.float64]
-    ) -> NDArray[np.float64]:
+    def wrench_in_sensor(self, t_s: float, pose_base_sensor: NDArray[np.float64]) -> Wrench:
         return ZERO6
 
-    def joint_torque(self, t_s: float) -> NDArray[np.float64]:
+    def joint_torque(self, t_s: float) -> Wrench:
         return ZERO6
 
 
