@@ -92,6 +92,7 @@ class JointServoPlant:
         self._was_tracking = False
         self.targets_received = 0
         self.watchdog_trips = 0
+        self._integrate(hold=True, steps=0)  # load (or compile) the kernel now, not in a slot
 
     def set_targets(self, targets: JointTargets, now_ns: int) -> None:
         """Take one Modbus write; targets are clamped to the position limits."""
@@ -124,18 +125,21 @@ class JointServoPlant:
         if steps <= 0:
             return
         # holding servos track the current position: the arm decelerates and stays
+        self._integrate(hold=not tracking, steps=min(steps, MAX_SUBSTEPS))
+        self._t_ns += steps * self._substep_ns
+
+    def _integrate(self, *, hold: bool, steps: int) -> None:
         _integrate(
             self._q,
             self._qd,
             self._qdd,
             self._target,
-            not tracking,
+            hold,
             self._limits,
             self._wn,
             self._substep_s,
-            min(steps, MAX_SUBSTEPS),
+            steps,
         )
-        self._t_ns += steps * self._substep_ns
 
     def state(self, sequence: int, device_t_ns: int, torque_nm: tuple[float, ...]) -> RobotState:
         """The joint-state frame to stream now, with measured joint torques (N*m)."""
