@@ -14,13 +14,21 @@ from rich.console import Console
 from rich.text import Text
 
 from hilrig.cli.app import app
+from hilrig.control import Law
 from hilrig.drivers.emulated.rig import RigEndpoints
 from hilrig.drivers.emulated.scenarios import SCENARIOS
 from hilrig.errors import HilrigError
 from hilrig.recording.samples import EventRecord
-from hilrig.rig.loop import ControlLoop, LoopConfig
-from hilrig.rig.session import SessionConfig, SessionResult, record_session
-from hilrig.viz.live import check_sink
+from hilrig.rig import (
+    ControlLoop,
+    LoopConfig,
+    RigKind,
+    SessionConfig,
+    SessionResult,
+    record_session,
+)
+from hilrig.robot import aubo_i5_urdf
+from hilrig.viz.live import LiveView, check_sink
 from hilrig.viz.sinks import Sink, SinkKind
 
 
@@ -95,9 +103,14 @@ def print_result(console: Console, result: SessionResult) -> None:
         f" lateness p50 {late['p50']:.0f} us p99 {late['p99']:.0f} us max {late['max']:.0f} us",
         highlight=False,
     )
+    ack = summary.sensor_to_ack.summary_us()
     console.print(
-        f"  sensor-to-command p50 {s2c['p50']:.0f} us p99 {s2c['p99']:.0f} us; "
-        f"{result.messages_written or 'unknown'} messages written, {result.drops} dropped; "
+        f"  sensor-to-command (request sent) p50 {s2c['p50']:.0f} us p99 {s2c['p99']:.0f} us, "
+        f"to its acknowledgement p50 {ack['p50']:.0f} us p99 {ack['p99']:.0f} us",
+        highlight=False,
+    )
+    console.print(
+        f"  {result.messages_written or 'unknown'} messages written, {result.drops} dropped; "
         f"{len(result.events)} events, {summary.hold_ticks} hold ticks",
         highlight=False,
     )
@@ -112,7 +125,9 @@ def record(
     subject: Annotated[
         str, typer.Option(help="Pseudonymous subject id like S012 (names are refused).")
     ],
-    rig: Annotated[str, typer.Option(help="emulated (started here) or aubo.")] = "emulated",
+    rig: Annotated[
+        RigKind, typer.Option(help="emulated (started here) or aubo.")
+    ] = RigKind.EMULATED,
     config: Annotated[
         Path | None,
         typer.Option(
@@ -122,9 +137,7 @@ def record(
             "options)."
         ),
     ] = None,
-    controller: Annotated[str, typer.Option(help="Law: fixed, variable-stiffness, adaptive.")] = (
-        "adaptive"
-    ),
+    controller: Annotated[Law, typer.Option(help="The admittance law.")] = Law.ADAPTIVE,
     params: Annotated[str, typer.Option(help="Preset of the Cartesian axes.")] = "adaptive",
     joint_params: Annotated[str, typer.Option(help="Preset of the joints.")] = "adaptive-joint",
     scenario: Annotated[
@@ -157,7 +170,7 @@ def record(
 ) -> None:
     """Run the admittance controller in the loop with the rig and record every stream."""
     console = Console(soft_wrap=True)
-    if rig == "aubo" and config is None:
+    if rig is RigKind.AUBO and config is None:
         raise HilrigError("--rig aubo needs --config with the rig's endpoints")
     sink = view_sink(view, view_url, view_save)
     settings = read_config(config) if config is not None else {}
@@ -181,8 +194,18 @@ def record(
         loop=LoopConfig(
             rate_hz=rate, law=controller, cartesian_params=params, joint_params=joint_params
         ),
-        view=sink,
+        session_id=time.strftime("%Y%m%d-%H%M%S"),
     )
+    live = None
+    if sink is not None:
+        live = LiveView(
+            sink,
+            session_id=session.session_id,
+            controller=session.loop.law.value,
+            source=path.name,
+            loop_rate_hz=session.loop.rate_hz,
+            urdf=aubo_i5_urdf(),
+        )
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
@@ -219,6 +242,7 @@ def record(
         result = record_session(
             session,
             stop=stop,
+            live=live,
             on_start=on_start,
             on_event=lambda r: pending.append((time.monotonic() - started, r)),
         )

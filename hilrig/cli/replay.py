@@ -29,7 +29,7 @@ from hilrig.errors import ReplayError
 from hilrig.replay import ForceTrace, Run, load_trace, parse_specs, peak_offsets, replay
 from hilrig.replay.outputs import MCAP_SUFFIXES, PARQUET_SUFFIXES, write_mcap, write_parquet
 from hilrig.replay.verify import summary_lines, verify
-from hilrig.rig import LoopConfig, SessionConfig, VirtualInput, record_session
+from hilrig.rig import LoopConfig, RigKind, SessionConfig, VirtualInput, record_session
 
 #: Inputs at least this large get a progress bar.
 LONG_INPUT_BYTES = 16 << 20
@@ -95,7 +95,7 @@ def replay_command(
         typer.Option("--jobs", "-j", min=1, help="Processes (default: chosen by size)."),
     ] = None,
     rig: Annotated[
-        str | None,
+        RigKind | None,
         typer.Option(
             help="HIL replay: play the trace into a live rig (emulated, or aubo with --config) "
             "as a virtual collision and record the new session to --out."
@@ -236,7 +236,7 @@ def _summary(
 
 def _replay_into_rig(
     file: Path,
-    rig: str,
+    rig: RigKind,
     subject: str | None,
     rate_hz: float,
     start_s: float,

@@ -107,6 +107,14 @@ class FtSerial(Reader[FtSample]):
                 os.write(self._fd, STOP_COMMAND)
             self._drop()
 
+    def stop_streaming(self) -> None:
+        """Send the stop command but keep the port open, so that poll still reads the frames
+        the sensor sent before it (a session's end); poll no longer restarts the stream."""
+        self._restart_after_ns = 1 << 62
+        if self._serial is not None:
+            with contextlib.suppress(OSError):  # if the link is gone the sensor cannot hear us
+                os.write(self._fd, STOP_COMMAND)
+
     @property
     def is_connected(self) -> bool:
         """True while the port is open."""

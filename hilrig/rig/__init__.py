@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     from hilrig.rig.rig_process import FAULTS, RigProcess
     from hilrig.rig.rings import Rows
     from hilrig.rig.safety import SafetyClamp, SafetyConfig
-    from hilrig.rig.session import SessionConfig, SessionResult, record_session
+    from hilrig.rig.session import RigKind, SessionConfig, SessionResult, record_session
     from hilrig.rig.timing import DeadlineTimer
     from hilrig.rig.trajectory import Trajectory, make_trajectory
     from hilrig.rig.view_feed import VIEW_RATE_HZ, ViewBatch, ViewCounts, ViewForwarder
@@ -43,7 +43,7 @@ _MODULES = {
     "rig_process": ("FAULTS", "RigProcess"),
     "rings": ("Rows",),
     "safety": ("SafetyClamp", "SafetyConfig"),
-    "session": ("SessionConfig", "SessionResult", "record_session"),
+    "session": ("RigKind", "SessionConfig", "SessionResult", "record_session"),
     "timing": ("DeadlineTimer",),
     "trajectory": ("Trajectory", "make_trajectory"),
     "view_feed": ("VIEW_RATE_HZ", "ViewBatch", "ViewCounts", "ViewForwarder"),
@@ -71,6 +71,7 @@ __all__ = [
     "RecorderFeed",
     "RecorderProcess",
     "RecorderSummary",
+    "RigKind",
     "RigProcess",
     "Rows",
     "SafetyClamp",

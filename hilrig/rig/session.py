@@ -1,11 +1,20 @@
 """A recorded HIL session, end to end: rig up, drivers connected, tare, loop, file closed.
 
-``record_session`` starts the emulated rig in its own process (or uses the endpoints of a real
-AUBO rig), connects the three drivers, tares the wrist sensor at the start pose (the tool's
-gravity accounted for), starts the recorder process (and, with ``view``, the live view's
-viewer-feed process, :mod:`hilrig.viz.live`) and runs the loop until the duration has passed or
-``stop`` is set (Ctrl-C, SIGTERM). Whatever happens, the robot is left holding and the
-recording is closed cleanly: the ExitStack unwinds in reverse order.
+Start-up is ordered so that nothing is lost and nothing costs the first ticks:
+
+1. the compiled tick is loaded and run once (numba's first-call costs), before any device talks;
+2. the recorder process and (emulated) rig process are spawned side by side, and the live view's
+   viewer-feed process if asked;
+3. the drivers connect; from the first byte on, the loop's thread reads them and every sample
+   goes to the recorder's rings (sized for start-up, :data:`STARTUP_RING_ROWS`);
+4. the wrist sensor is tared at the start pose (the tool's gravity accounted for) from the
+   samples read meanwhile, which are recorded too;
+5. the recorder gets the session metadata and calibration and opens the file; the rows waiting
+   in the rings are written first;
+6. the loop ticks until the duration has passed or ``stop`` is set (Ctrl-C, SIGTERM).
+
+Whatever happens, the robot is left holding and the recording is closed cleanly: the ExitStack
+unwinds in reverse order.
 """
 
 from __future__ import annotations
@@ -17,31 +26,47 @@ import time
 from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field, replace
+from enum import StrEnum
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from hilrig.drivers.emulated.rig import RigEndpoints
 from hilrig.drivers.emulated.scenarios import scenario as make_scenario
 from hilrig.drivers.ft_serial import FtSerial
 from hilrig.drivers.gravity import GravityCompensator, ToolLoad
 from hilrig.drivers.joint_targets import JointTargetsWriter, ModbusEndpoint
-from hilrig.drivers.robot_state import RobotStateClient
-from hilrig.errors import HilrigError, RecordingError
+from hilrig.drivers.robot_state import ReceivedState, RobotStateClient
+from hilrig.errors import HilrigError, LinkError, RecordingError
 from hilrig.recording import Attachment, SessionInfo, validate_subject_id
 from hilrig.recording.samples import EventRecord
+from hilrig.rig.device_io import DeviceIO
+from hilrig.rig.live_port import LiveReportLike, LiveViewPort
 from hilrig.rig.loop import ControlLoop, LoopConfig, LoopSummary
-from hilrig.rig.recorder import RecorderFeed, RecorderProcess
+from hilrig.rig.recorder_feed import RecorderFeed
+from hilrig.rig.recorder_process import RecorderProcess
 from hilrig.rig.records import AXIS_NAMES
-from hilrig.rig.rig_process import RigProcess
+from hilrig.rig.rig_process import RigCounters, RigProcess
 from hilrig.rig.safety import SafetyClamp, SafetyConfig
+from hilrig.rig.tick import warm_up
 from hilrig.rig.trajectory import make_trajectory
 from hilrig.rig.virtual import VirtualInput
 from hilrig.robot import RobotModel
-from hilrig.viz.live import LiveReport, LiveView, check_sink
-from hilrig.viz.sinks import Sink
 
 EMULATED_TOOL = ToolLoad(mass_kg=0.5, com_in_sensor_m=(0.0, 0.0, 0.05))
+STARTUP_RING_ROWS = 16384  # 16 s at 1 kHz: samples read before the recorder has its file open
+FIRST_SAMPLE_TIMEOUT_S = 5.0
+RECORDER_READY_TIMEOUT_S = 60.0
+QUIET_S = 0.05  # at a session's end: a link silent this long has delivered all it sent
+MAX_DRAIN_S = 2.0
+
+
+class RigKind(StrEnum):
+    """Which rig a session runs on: the emulated one (started here) or a real AUBO."""
+
+    EMULATED = "emulated"
+    AUBO = "aubo"
 
 
 @dataclass(frozen=True)
@@ -49,13 +74,12 @@ class SessionConfig:
     """One session: who (pseudonym), what (scenario, trajectory, controller), how long, where.
 
     ``rig`` is "emulated" (started here) or "aubo" with ``endpoints`` of the real devices.
-    ``view``: where the live view goes (None: no live view).
     """
 
     out: Path
     subject_id: str
     scenario: str = "paper-end-effector"
-    rig: str = "emulated"
+    rig: RigKind = RigKind.EMULATED
     endpoints: RigEndpoints | None = None
     duration_s: float | None = 20.0
     trajectory: str = "circle"
@@ -66,13 +90,21 @@ class SessionConfig:
     session_id: str = ""
     virtual: VirtualInput | None = None  # a recorded trace played as a virtual collision
     virtual_source: str = ""  # where that trace came from (file, start, duration)
-    view: Sink | None = None
+
+    def __post_init__(self) -> None:
+        try:
+            object.__setattr__(self, "rig", RigKind(self.rig))
+        except ValueError:
+            known = ", ".join(kind.value for kind in RigKind)
+            raise HilrigError(f"rig {self.rig!r} is not one of: {known}") from None
+        if self.rig is RigKind.AUBO and self.endpoints is None:
+            raise HilrigError("rig aubo needs its endpoints (a config file)")
 
     def as_json(self) -> str:
         """The configuration as JSON, attached to the recording (the virtual trace summarised;
-        its values are attached as virtual_input.npy)."""
+        its values are attached as virtual_input.npy; the output's folder is not kept)."""
         record = asdict(replace(self, virtual=None))
-        record["out"] = str(self.out)
+        record["out"] = self.out.name
         if self.virtual is not None:
             record["virtual"] = {
                 "rows": self.virtual.force.shape[0],
@@ -93,6 +125,9 @@ class SessionConfig:
             files.append(Attachment("virtual_input.npy", "application/x-npy", buffer.getvalue()))
         return files
 
+    def session_id_or_now(self) -> str:
+        return self.session_id or time.strftime("%Y%m%d-%H%M%S")
+
 
 @dataclass
 class SessionResult:
@@ -105,13 +140,15 @@ class SessionResult:
     drops: int
     events: list[EventRecord]
     recorder_error: str = ""  # why the file may be truncated ("" when it closed cleanly)
-    view: LiveReport | None = None
+    view: LiveReportLike | None = None
+    rig_counters: RigCounters | None = None  # what the emulated rig sent (None: a real rig)
 
 
 def record_session(
     config: SessionConfig,
     *,
     stop: threading.Event | None = None,
+    live: LiveViewPort | None = None,
     on_start: Callable[[ControlLoop], None] | None = None,
     on_event: Callable[[EventRecord], None] | None = None,
     rig_ready: Callable[[RigProcess], None] | None = None,
@@ -119,16 +156,13 @@ def record_session(
 ) -> SessionResult:
     """Run and record one session; raises HilrigError (one line) when it cannot start.
 
+    ``live`` is the live view (built by the caller, e.g. ``hilrig.viz.live.LiveView``);
     ``on_start`` gets the loop before it ticks (e.g. for a status line), ``on_event`` every
     event (called on the tick: it must only queue), ``rig_ready`` and ``recorder_ready`` the
     emulated rig and recorder processes (fault injection in tests).
     """
     validate_subject_id(config.subject_id)
-    if config.rig not in ("emulated", "aubo"):
-        raise HilrigError(f"rig {config.rig!r} is not one of: emulated, aubo")
     make_scenario(config.scenario)  # an unknown scenario fails before anything starts
-    if config.view is not None:
-        check_sink(config.view)
     stop = stop or threading.Event()
     events: list[EventRecord] = []
 
@@ -137,86 +171,67 @@ def record_session(
         if on_event is not None:
             on_event(record)
 
-    session_id = config.session_id or time.strftime("%Y%m%d-%H%M%S")
+    session_id = config.session_id_or_now()
     model = RobotModel()
+    warm_up()  # numba's first-call costs, before any device talks
     with ExitStack() as stack:
-        live = None
-        if config.view is not None:  # first: its start-up must not delay the rig's scenario
-            live = LiveView(
-                config.view,
-                session_id=session_id,
-                controller=config.loop.law,
-                source=str(config.out),
-                loop_rate_hz=config.loop.rate_hz,
-                urdf=model.urdf_xml,
-            )
+        if live is not None:  # first: its start-up must not delay the rig's scenario
             stack.callback(live.close)
             live.start()
-        if config.rig == "emulated":
+        feed = RecorderFeed(rows=STARTUP_RING_ROWS)
+        stack.callback(feed.close)
+        recorder = RecorderProcess(
+            config.out,
+            feed=feed,
+            urdf=model.urdf_xml,
+            attachments=config.attachments(),
+            controller=config.loop.law.value,
+            axis_names=AXIS_NAMES,
+            view=None if live is None else live.queue,
+        )
+        recorder.spawn()  # imports while the rig comes up
+        rig = None
+        if config.rig is RigKind.EMULATED:
             rig = RigProcess(config.scenario)
             endpoints = rig.start()
             stack.callback(rig.stop)
             if rig_ready is not None:
                 rig_ready(rig)
         else:
-            if config.endpoints is None:
-                raise HilrigError("rig aubo needs its endpoints (a config file)")
+            assert config.endpoints is not None
             endpoints = config.endpoints
-        sensor = FtSerial(endpoints.ft_wrist_port)
-        sensor.connect()
-        stack.callback(sensor.close)
-        robot = RobotStateClient(*endpoints.robot_state)
-        robot.connect()
-        stack.callback(robot.close)
-        targets = JointTargetsWriter(ModbusEndpoint(*endpoints.modbus))
-        targets.connect()
-        stack.callback(targets.close)
-
-        latest = robot.latest()
-        assert latest is not None  # connect() waited for the first frame
-        q0 = np.asarray(latest.state.q_rad)
+        devices = _connect(stack, endpoints, feed)
+        q0 = np.asarray(_wait_for_robot(devices).state.q_rad, dtype=np.float64)
         start_pose = model.fk(q0)
         compensator = GravityCompensator(config.tool)
-        compensator.tare(sensor.average(config.tare_s), start_pose[:3, :3])
-        info = SessionInfo.starting_now(
-            session_id=session_id,
-            subject_id=config.subject_id,
-            rig=config.rig,
-            controller=config.loop.law,
-            controller_params=config.loop.params_record(),
-        )
-        feed = RecorderFeed()
-        stack.callback(feed.close)
-        recorder = RecorderProcess(
-            config.out,
-            info,
-            feed=feed,
-            urdf=model.urdf_xml,
-            attachments=config.attachments(),
-            calibration={
+        compensator.tare(_average_wrench(devices, config.tare_s), start_pose[:3, :3])
+        recorder.begin(
+            SessionInfo.starting_now(
+                session_id=session_id,
+                subject_id=config.subject_id,
+                rig=config.rig.value,
+                controller=config.loop.law.value,
+                controller_params=config.loop.params_record(),
+            ),
+            {
                 "bias_in_sensor": compensator.bias_in_sensor.tolist(),
                 "tool_mass_kg": config.tool.mass_kg,
                 "tool_com_in_sensor_m": list(config.tool.com_in_sensor_m),
             },
-            controller=config.loop.law,
-            axis_names=AXIS_NAMES,
-            view=None if live is None else live.queue,
         )
-        recorder.start()
+        _wait_for_recorder(devices, recorder)
         if recorder_ready is not None:
             recorder_ready(recorder)
         loop = ControlLoop(
             config.loop,
-            sensor=sensor,
-            robot=robot,
-            targets=targets,
+            io=devices,
             compensator=compensator,
             trajectory=make_trajectory(config.trajectory, start_pose, **config.trajectory_options),
             safety=SafetyClamp(SafetyConfig(dt_s=1.0 / config.loop.rate_hz), model, q0),
             model=model,
-            feed=feed,
             on_event=collect,
             virtual=config.virtual,
+            watchdog=lambda: "" if recorder.alive() else "the recorder process died",
         )
         if on_start is not None:
             on_start(loop)
@@ -225,6 +240,7 @@ def record_session(
         view = None
         try:
             summary = loop.run(config.duration_s, stop)
+            _read_to_the_end(devices, rig)
         finally:
             try:
                 messages, drops = recorder.stop()
@@ -233,4 +249,83 @@ def record_session(
                 drops = feed.drops
             if live is not None:  # after the recorder: its last batch is queued by now
                 view = live.stop(recorder.view_counts)
-    return SessionResult(config.out, summary, messages, drops, events, recorder_error, view)
+    counters = None if rig is None else rig.final_counters
+    return SessionResult(
+        config.out, summary, messages, drops, events, recorder_error, view, counters
+    )
+
+
+def _connect(stack: ExitStack, endpoints: RigEndpoints, feed: RecorderFeed) -> DeviceIO:
+    """Open the three links (no waiting for data: the loop's thread reads from now on)."""
+    sensor = FtSerial(endpoints.ft_wrist_port)
+    sensor.connect(first_sample_timeout_s=None)
+    stack.callback(sensor.close)
+    robot = RobotStateClient(*endpoints.robot_state)
+    robot.connect(first_frame_timeout_s=None)
+    stack.callback(robot.close)
+    targets = JointTargetsWriter(ModbusEndpoint(*endpoints.modbus))
+    targets.connect()
+    stack.callback(targets.close)
+    return DeviceIO(sensor, robot, targets, feed)
+
+
+def _wait_for_robot(devices: DeviceIO) -> ReceivedState:
+    """Read (and record) until the robot's first joint state and the sensor's first frame."""
+    deadline = time.monotonic_ns() + round(FIRST_SAMPLE_TIMEOUT_S * 1e9)
+    while devices.robot.latest() is None or devices.sensor.latest() is None:
+        now = devices.wait(min(deadline, time.monotonic_ns() + 10_000_000))
+        devices.pump(now)
+        if now >= deadline:
+            missing = "robot joint state" if devices.robot.latest() is None else "wrist F/T sensor"
+            raise LinkError(f"{missing}: no valid frame within {FIRST_SAMPLE_TIMEOUT_S} s")
+    latest = devices.robot.latest()
+    assert latest is not None
+    return latest
+
+
+def _average_wrench(devices: DeviceIO, duration_s: float) -> NDArray[np.float64]:
+    """The mean raw wrist wrench over ``duration_s`` of samples (all recorded): the tare."""
+    samples: list[tuple[float, ...]] = []
+    end = time.monotonic_ns() + round(duration_s * 1e9)
+    now = time.monotonic_ns()
+    while now < end or not samples:
+        now = devices.wait(end)
+        samples.extend(s.wrench_in_sensor for s in devices.pump(now))
+        if now >= end + round(FIRST_SAMPLE_TIMEOUT_S * 1e9):
+            raise LinkError("wrist F/T sensor: no samples to tare")
+    mean: NDArray[np.float64] = np.mean(np.asarray(samples, dtype=np.float64), axis=0)
+    return mean
+
+
+def _read_to_the_end(devices: DeviceIO, rig: RigProcess | None) -> None:
+    """Stop the sensor's stream and record the frames still on their way; with the emulated rig,
+    stop it and record the joint states it sent up to its end (its socket's EOF)."""
+    devices.sensor.stop_streaming()
+    _read_until_quiet(devices)
+    if rig is not None:
+        rig.stop()
+        _read_until_quiet(devices)
+
+
+def _read_until_quiet(devices: DeviceIO) -> None:
+    """Read (and record) until no data came for QUIET_S, or MAX_DRAIN_S passed."""
+    now = time.monotonic_ns()
+    end = now + round(MAX_DRAIN_S * 1e9)
+    quiet_until = now + round(QUIET_S * 1e9)
+    while now < min(quiet_until, end):
+        now = devices.wait(min(quiet_until, end))
+        before = devices.samples_read
+        devices.pump(now)
+        if devices.samples_read != before:
+            quiet_until = now + round(QUIET_S * 1e9)
+
+
+def _wait_for_recorder(devices: DeviceIO, recorder: RecorderProcess) -> None:
+    """Keep reading (and queueing) samples until the recorder has its file open."""
+    deadline = time.monotonic() + RECORDER_READY_TIMEOUT_S
+    while not recorder.ready():
+        devices.pump(devices.wait(time.monotonic_ns() + 5_000_000))
+        if time.monotonic() > deadline:
+            raise RecordingError(
+                f"recorder of {recorder.path}: not ready within {RECORDER_READY_TIMEOUT_S} s"
+            )

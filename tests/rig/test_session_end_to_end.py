@@ -65,18 +65,25 @@ def collision(tmp_path_factory: pytest.TempPathFactory) -> SessionResult:
     return run(tmp_path_factory.mktemp("session"), "collision.mcap", 6.5)
 
 
-def test_every_topic_is_recorded_at_its_rate_with_monotonic_times(
-    collision: SessionResult,
-) -> None:
+def test_every_frame_the_rig_sent_and_every_tick_is_recorded(collision: SessionResult) -> None:
     frames = load(collision.path)
-    assert collision.drops == 0
+    counters = collision.rig_counters
+    assert counters is not None
+    assert collision.drops == 0 and collision.summary.hold_ticks == 0
+    ft = frames["/ft/wrist"]
+    assert len(ft) == counters.ft_frames_sent > 0  # from the first frame to the last
+    assert counters.ft_frames_dropped == 0
+    assert len(frames["/joint_states"]) == counters.joint_frames_sent > 0
+    ticks = frames["/diagnostics/loop"]
+    assert len(ticks) == collision.summary.ticks
+    np.testing.assert_array_equal(ticks["tick"].to_numpy(), np.arange(1, len(ticks) + 1))
     for topic in TOPICS_AT_1KHZ:
         t_ns = frames[topic].index.to_numpy()
-        span_s = (t_ns[-1] - t_ns[0]) / 1e9
         assert np.all(np.diff(t_ns) >= 0), topic
-        assert len(t_ns) / span_s == pytest.approx(1000.0, rel=0.02), topic
-    ticks = frames["/diagnostics/loop"]
-    assert (np.diff(ticks["tick"].to_numpy()) == 1).all()  # no tick lost on the way to disk
+        if topic not in ("/ft/wrist", "/joint_states"):
+            assert len(t_ns) == collision.summary.ticks, topic  # one message a tick
+    # every frame the sensor sent triggered a tick, unless it came after the session's end
+    assert collision.summary.ticks <= counters.ft_frames_sent
 
 
 def test_recorded_state_is_the_controller_replayed_on_the_recorded_input(
@@ -120,7 +127,10 @@ def test_faults_hold_the_robot_and_are_logged_while_the_loop_keeps_ticking(
     assert sources.count("robot joint state") >= 4  # stale and back, twice (stall, dropped link)
     assert "joint targets" in sources
     assert result.summary.hold_ticks >= 50
-    assert result.summary.ticks == pytest.approx(3000, rel=0.02)  # the loop kept ticking
+    # the loop kept ticking through every fault: ticks are logged after the last fault's time
+    ticks = load(result.path, topics=["/diagnostics/loop"])["/diagnostics/loop"]
+    assert ticks.index.to_numpy()[-1] > max(e.t_ns for e in faults)
+    np.testing.assert_array_equal(ticks["tick"].to_numpy(), np.arange(1, len(ticks) + 1))
     # tracking resumed after the dropped link: the last fault is a recovery
     last_robot = [e for e in faults if e.source == "robot joint state"][-1]
     assert last_robot.detail.startswith("data fresh again")
@@ -128,7 +138,9 @@ def test_faults_hold_the_robot_and_are_logged_while_the_loop_keeps_ticking(
     assert len(recorded) == len(result.events)
 
 
-def test_a_killed_recorder_loses_at_most_half_a_second(tmp_path: Path) -> None:
+def test_a_killed_recorder_ends_the_session_at_once_and_loses_at_most_half_a_second(
+    tmp_path: Path,
+) -> None:
     recorders: list[RecorderProcess] = []
     ticks_at_kill: list[int] = []
 
@@ -140,12 +152,14 @@ def test_a_killed_recorder_loses_at_most_half_a_second(tmp_path: Path) -> None:
         assert pid is not None
         os.kill(pid, signal.SIGKILL)
 
-    # the rings hold 2 s: 2.5 s after the kill they have overflowed
-    result = run(tmp_path, "killed.mcap", 3.5, during=kill, recorders=recorders)
-    assert result.drops > 0  # counted, and the loop went on
+    result = run(tmp_path, "killed.mcap", 30.0, during=kill, recorders=recorders)
     assert result.messages_written is None
     assert result.recorder_error.startswith(f"recorder of {result.path}: exited with code -9")
-    assert result.summary.ticks == pytest.approx(3500, rel=0.02)
+    # the loop noticed within its watchdog's period (100 ticks) plus the kill's own delay, far
+    # from the 30 s asked for, and said why
+    assert result.summary.ticks < 10_000
+    ended = [e for e in result.events if e.source == "session"]
+    assert ended and ended[-1].detail == "the recorder process died: robot held, session ended"
     recover(result.path, tmp_path / "recovered.mcap")
     diagnostics = load(tmp_path / "recovered.mcap", topics=["/diagnostics/loop"])
     last_tick = int(diagnostics["/diagnostics/loop"]["tick"].to_numpy()[-1])

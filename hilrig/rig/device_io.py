@@ -1,0 +1,72 @@
+"""The loop thread's side of the three device links: wait on them, read them, record every sample.
+
+:class:`DeviceIO` holds the wrist F/T sensor, the robot's joint-state stream and the Modbus
+joint-target writer, all polled (no driver thread), and the recorder's feed. ``wait`` sleeps in
+``select`` until one of them has data or a deadline passes; ``pump`` reads each without blocking
+and puts every sample into its ring at once, from the first sample on (also while the session
+tares and waits for the recorder, before the first tick). Rows are assigned whole, one numpy call
+each, so a sample costs one store into the shared ring.
+"""
+
+from __future__ import annotations
+
+import select
+import time
+from dataclasses import dataclass
+
+from hilrig.drivers.ft_sensor import FtSample
+from hilrig.drivers.ft_serial import FtSerial
+from hilrig.drivers.joint_targets import JointTargetsWriter
+from hilrig.drivers.robot_state import RobotStateClient
+from hilrig.rig.recorder_feed import RecorderFeed
+
+
+@dataclass
+class DeviceIO:
+    """The three device links of a session and, when recording, the recorder's feed."""
+
+    sensor: FtSerial
+    robot: RobotStateClient
+    targets: JointTargetsWriter
+    feed: RecorderFeed | None = None
+    samples_read: int = 0  # wrist samples and joint states read so far
+
+    def wait(self, deadline_ns: int) -> int:
+        """Sleep until a device has data or ``deadline_ns`` (monotonic); returns the time now."""
+        fds = [self.sensor.fileno(), self.robot.fileno(), self.targets.fileno()]
+        timeout_ns = deadline_ns - time.monotonic_ns()
+        if timeout_ns > 0:
+            select.select([fd for fd in fds if fd >= 0], [], [], timeout_ns / 1e9)
+        return time.monotonic_ns()
+
+    def pump(self, now_ns: int) -> list[FtSample]:
+        """Read every device without blocking and hand each sample to the recorder's rings;
+        returns the wrist samples completed now, oldest first (the last is the newest)."""
+        feed = self.feed
+        states = self.robot.poll(now_ns)
+        for received in states:
+            if feed is not None:
+                ring = feed.joint
+                slot = ring.reserve_index()
+                if slot >= 0:
+                    s = received.state
+                    ring.rows[slot] = (
+                        received.t_ns,
+                        s.device_t_ns,
+                        s.sequence,
+                        s.q_rad,
+                        s.qd_rad_s,
+                        s.torque_nm,
+                    )
+                    ring.commit()
+        self.targets.poll(now_ns)
+        samples = self.sensor.poll(now_ns)
+        self.samples_read += len(states) + len(samples)
+        if feed is not None:
+            ring = feed.ft
+            for sample in samples:
+                slot = ring.reserve_index()
+                if slot >= 0:
+                    ring.rows[slot] = (sample.t_ns, sample.seq, sample.wrench_in_sensor)
+                    ring.commit()
+        return samples
