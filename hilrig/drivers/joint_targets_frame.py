@@ -53,6 +53,20 @@ class RequestFrame:
         )
 
 
+def rtu_frame_size(decoder: DecodePDU, buffer: bytes | bytearray) -> int:
+    """Bytes of the RTU frame at the start of ``buffer`` by pymodbus's own sizing of its
+    function; 0 while incomplete, ``len(buffer)`` for a function pymodbus does not know (nothing
+    after it can be framed). pymodbus's ``FramerRTU.handleFrame`` takes a whole buffer as one
+    frame, so pipelined frames are cut with this first."""
+    if len(buffer) < FramerRTU.MIN_SIZE:
+        return 0
+    pdu_class = decoder.lookupPduClass(bytes(buffer[:2]))
+    if pdu_class is None:
+        return len(buffer)
+    size = int(pdu_class.calculateRtuFrameSize(bytes(buffer)))
+    return size if 0 < size <= len(buffer) else 0
+
+
 def _pymodbus_frame(register_map: RegisterMap, targets: JointTargets) -> bytes:
     """The request as pymodbus frames it (the template, and the tests' oracle)."""
     request = WriteMultipleRegistersRequest(

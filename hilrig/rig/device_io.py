@@ -32,11 +32,13 @@ class DeviceIO:
     samples_read: int = 0  # wrist samples and joint states read so far
 
     def wait(self, deadline_ns: int) -> int:
-        """Sleep until a device has data or ``deadline_ns`` (monotonic); returns the time now."""
-        fds = [self.sensor.fileno(), self.robot.fileno(), self.targets.fileno()]
+        """Sleep until the wrist sensor has data or ``deadline_ns`` (monotonic); returns the
+        time now. Only the sensor wakes the loop: the joint state of its period arrives before
+        it, and Modbus replies are taken at the next tick, so one wake-up serves a period."""
         timeout_ns = deadline_ns - time.monotonic_ns()
         if timeout_ns > 0:
-            select.select([fd for fd in fds if fd >= 0], [], [], timeout_ns / 1e9)
+            fd = self.sensor.fileno()
+            select.select([fd] if fd >= 0 else [], [], [], timeout_ns / 1e9)
         return time.monotonic_ns()
 
     def pump(self, now_ns: int) -> list[FtSample]:

@@ -263,7 +263,8 @@ def _connect(stack: ExitStack, endpoints: RigEndpoints, feed: RecorderFeed) -> D
     robot = RobotStateClient(*endpoints.robot_state)
     robot.connect(first_frame_timeout_s=None)
     stack.callback(robot.close)
-    targets = JointTargetsWriter(ModbusEndpoint(*endpoints.modbus))
+    # two requests in flight: a reply is read at the next tick, and TCP keeps them in order
+    targets = JointTargetsWriter(ModbusEndpoint(*endpoints.modbus), max_in_flight=2)
     targets.connect()
     stack.callback(targets.close)
     return DeviceIO(sensor, robot, targets, feed)

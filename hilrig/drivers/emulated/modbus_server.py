@@ -27,6 +27,7 @@ from pymodbus.pdu.register_message import (
 )
 
 from hilrig.drivers.emulated.slots import Device, SlotLoop
+from hilrig.drivers.joint_targets_frame import rtu_frame_size
 from hilrig.drivers.joint_targets_map import JointTargets, RegisterMap
 
 MAX_REQUEST_BYTES = 1024  # unframed bytes beyond which a client's input is discarded
@@ -47,7 +48,7 @@ class EmulatedModbusServer(Device):
     and ``rejected`` (bad address or values) count requests answered.
     """
 
-    standalone_period_ns = 10_000_000  # alone it only answers requests: no need to tick fast
+    standalone_period_ns = 1_000_000  # requests are answered at the start of each slot
     thread_name = "modbus"
 
     def __init__(
@@ -124,8 +125,13 @@ class EmulatedModbusServer(Device):
             return
         client.rx += data
         while client.rx:
+            size = rtu_frame_size(client.framer.decoder, client.rx)  # requests may be pipelined
+            if size == 0:
+                if len(client.rx) > MAX_REQUEST_BYTES:
+                    client.rx.clear()
+                return
             try:
-                used, request = client.framer.handleFrame(bytes(client.rx), 0, 0)
+                used, request = client.framer.handleFrame(bytes(client.rx[:size]), 0, 0)
             except ModbusIOException as exc:  # framed but not decodable: as pymodbus's server
                 client.rx.clear()
                 reply: ModbusPDU | None = ExceptionResponse(

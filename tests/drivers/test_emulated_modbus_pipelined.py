@@ -1,0 +1,33 @@
+"""The emulated Modbus endpoint answers pipelined requests, each in order, none lost."""
+
+import socket
+
+import numpy as np
+
+from hilrig.drivers.emulated.modbus_server import EmulatedModbusServer
+from hilrig.drivers.joint_targets_frame import RequestFrame
+from hilrig.drivers.joint_targets_map import JointTargets, Mode, RegisterMap
+
+ACK_BYTES = 8  # device, function 16, address (2), count (2), CRC (2)
+
+
+def test_requests_sent_in_one_segment_are_each_applied_and_answered() -> None:
+    received: list[JointTargets] = []
+    request = RequestFrame(RegisterMap())
+    frames = b""
+    for sequence in (1, 2, 3):
+        request.fill(np.full(6, 0.1 * sequence), sequence, Mode.TRACK)
+        frames += request.frame.tobytes()
+    with (
+        EmulatedModbusServer(received.append) as server,
+        socket.create_connection(("127.0.0.1", server.port), timeout=10) as client,
+    ):
+        client.sendall(frames)  # three requests before any reply
+        replies = b""
+        while len(replies) < 3 * ACK_BYTES:
+            replies += client.recv(64)
+    assert len(replies) == 3 * ACK_BYTES
+    assert replies[:ACK_BYTES] == replies[ACK_BYTES : 2 * ACK_BYTES]  # identical acks
+    assert [t.sequence for t in received] == [1, 2, 3]
+    np.testing.assert_allclose([t.q_rad[0] for t in received], [0.1, 0.2, 0.3], rtol=1e-6)
+    assert server.writes == 3
