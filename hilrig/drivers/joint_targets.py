@@ -1,38 +1,46 @@
-"""Joint targets to the robot over Modbus RTU (function 16), from a latest-value writer thread.
+"""Joint targets to the robot over Modbus RTU (function 16), sent from the caller's loop.
 
-``write(q_rad)`` never blocks: it stores the newest targets and wakes the writer thread, which
-writes the register map (joint_targets_map.py) with a fresh watchdog counter. Targets replaced
-before they were written are counted as superseded (latest-value semantics: the robot should
-only ever get the newest). Modbus exception replies become ModbusExceptionError, counted by
-code; timeouts and lost links are counted and the link is reopened with backoff. No exception
-escapes the thread: the last one is kept in ``last_error``.
+``write(q_rad)`` never blocks: it encodes the register map (joint_targets_map.py) with a fresh
+watchdog counter and sends the request at once if fewer than ``max_in_flight`` requests await
+replies; otherwise the targets wait as the pending latest value (a newer write supersedes them,
+counted: the robot should only ever get the newest) and leave from ``poll`` as soon as a reply
+frees a slot. ``poll(now_ns)`` reads replies without blocking and matches them to the requests
+in order: acknowledged writes, Modbus exception replies (ModbusExceptionError, counted by code)
+and timeouts (no reply within the endpoint's ``timeout_s``: the link is dropped and reopened
+with backoff) are counted. Nothing raises: the last error is kept in ``last_error``. No thread.
+
+Frames are pymodbus's: a request is pymodbus's template filled in place by a compiled kernel
+(:class:`~hilrig.drivers.joint_targets_frame.RequestFrame`, checked byte for byte against
+pymodbus; pymodbus per request costs tens of us here); the acknowledgement, the same 8 bytes for
+every write of a register map, is built once by pymodbus and compared byte for byte; any other
+reply is cut by pymodbus's sizing and decoded by pymodbus (``FramerRTU.handleFrame``).
 """
 
 from __future__ import annotations
 
-import threading
+import contextlib
+import os
+import socket
 import time
+from collections import deque
 from dataclasses import dataclass, field
-from typing import Protocol
 
 import numpy as np
+import serial
 from numpy.typing import ArrayLike, NDArray
-from pymodbus import FramerType
-from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import ModbusException
+from pymodbus.framer import FramerRTU
+from pymodbus.pdu import DecodePDU, ModbusPDU
+from pymodbus.pdu.register_message import WriteMultipleRegistersResponse
 
-from hilrig.drivers.base import LinkStatus, Writer
-from hilrig.drivers.joint_targets_map import JOINTS, JointTargets, Mode, RegisterMap
-from hilrig.errors import LinkError, ModbusExceptionError
+from hilrig.drivers.base import LinkStatus, Writer, error_text, wait_readable
+from hilrig.drivers.joint_targets_frame import RequestFrame, rtu_frame_size
+from hilrig.drivers.joint_targets_map import JOINTS, Mode, RegisterMap
+from hilrig.drivers.reconnect import Backoff, start_tcp_connect, tcp_connected
+from hilrig.errors import LinkError, ModbusExceptionError, ParameterError, ProtocolError
 
-
-class ModbusClient(Protocol):
-    """The part of a pymodbus sync client the writer uses."""
-
-    def connect(self) -> bool: ...
-    def close(self) -> None: ...
-    def write_registers(self, address: int, values: list[int], *, device_id: int = 1) -> object: ...
+READ_BYTES = 4096
 
 
 @dataclass(frozen=True)
@@ -43,27 +51,8 @@ class ModbusEndpoint:
     port: int = 502
     serial_port: str | None = None  # e.g. /dev/ttyUSB0; set to use the serial bus instead
     baudrate: int = 115200
-    timeout_s: float = 0.05
-    retries: int = 1
-
-    def client(self) -> ModbusClient:
-        """A pymodbus client with RTU framing for this endpoint (not yet connected)."""
-        if self.serial_port is not None:
-            return ModbusSerialClient(
-                self.serial_port,
-                framer=FramerType.RTU,
-                baudrate=self.baudrate,
-                timeout=self.timeout_s,
-                retries=self.retries,
-            )
-        return ModbusTcpClient(
-            self.host,
-            port=self.port,
-            framer=FramerType.RTU,
-            timeout=self.timeout_s,
-            retries=self.retries,
-            reconnect_delay=0.0,
-        )
+    timeout_s: float = 0.05  # a request unanswered for this long drops the link
+    connect_timeout_s: float = 1.0  # a TCP connect not done by then is abandoned (backoff)
 
     def __str__(self) -> str:
         return self.serial_port or f"rtu+tcp://{self.host}:{self.port}"
@@ -71,18 +60,30 @@ class ModbusEndpoint:
 
 @dataclass
 class WriterStats:
-    """Counters since the writer started; ``exceptions`` counts Modbus exception codes."""
+    """Counters since the writer was made; ``exceptions`` counts Modbus exception codes."""
 
     submitted: int = 0
-    written: int = 0
+    sent: int = 0  # requests sent
+    written: int = 0  # requests acknowledged
     superseded: int = 0
     refused: int = 0  # submits with non-finite targets, never sent
     timeouts: int = 0
     reconnects: int = 0
+    in_flight: int = 0  # requests sent and awaiting their reply
     exceptions: dict[int, int] = field(default_factory=dict)
-    last_write_ns: int = 0  # time.monotonic_ns() when the last write was acknowledged
-    last_latency_ns: int = 0  # submit -> acknowledged, of the last write
+    last_sent_ns: int = 0  # time.monotonic_ns() once the last request's send returned
+    last_sent_source_ns: int = 0  # the source time given with the last request sent
+    last_write_ns: int = 0  # the poll time that read the last acknowledgement
+    last_latency_ns: int = 0  # submit -> acknowledged, of the last acknowledged write
     last_source_ns: int = 0  # the source time given with the last acknowledged write (or 0)
+
+
+@dataclass(frozen=True, slots=True)
+class _Request:
+    sequence: int
+    submitted_ns: int
+    source_ns: int
+    sent_ns: int = 0
 
 
 class JointTargetsWriter(Writer[ArrayLike]):
@@ -93,69 +94,128 @@ class JointTargetsWriter(Writer[ArrayLike]):
         endpoint: ModbusEndpoint,
         *,
         register_map: RegisterMap | None = None,
+        max_in_flight: int = 1,
         backoff_s: tuple[float, float] = (0.01, 1.0),
     ) -> None:
+        if max_in_flight < 1 or (endpoint.serial_port is not None and max_in_flight != 1):
+            raise ParameterError(
+                f"joint targets {endpoint}: max_in_flight must be 1 on a serial bus and >= 1, "
+                f"got {max_in_flight}"
+            )
         self.endpoint = endpoint
+        self.max_in_flight = max_in_flight
         self._map = register_map or RegisterMap()
-        self._backoff_s = backoff_s
-        self._lock = threading.Lock()
-        self._wake = threading.Event()
-        self._stop = threading.Event()
-        self._linked = threading.Event()
-        self._pending: tuple[NDArray[np.float64], Mode, int, int] | None = None
+        self._framer = FramerRTU(DecodePDU(is_server=False))
+        self._request = RequestFrame(self._map)
+        self._request_bytes = self._request.frame.data  # a view: fill() shows through
+        self._ack = FramerRTU(DecodePDU(is_server=True)).buildFrame(
+            WriteMultipleRegistersResponse(
+                address=self._map.start, count=self._map.count, dev_id=self._map.device_id
+            )
+        )
+        self._timeout_ns = round(endpoint.timeout_s * 1e9)
+        self._connect_timeout_ns = round(endpoint.connect_timeout_s * 1e9)
+        self._backoff = Backoff(backoff_s)
+        self._link: socket.socket | serial.Serial | None = None  # connecting or open
+        self._fd = -1  # its descriptor once connected
+        self._connect_started_ns = 0
+        self._wanted = False  # between connect() and close(): poll reopens a lost link
+        self._linked_before = False
+        self._rx = bytearray()
+        self._in_flight: deque[_Request] = deque()
+        self._pending: tuple[NDArray[np.float64], Mode, _Request] | None = None
         self._sequence = 0
-        self._thread: threading.Thread | None = None
         self.stats = WriterStats()
         self.errors = 0
         self.last_error: Exception | None = None
 
     def connect(self, *, timeout_s: float | None = 1.0) -> None:
-        """Start the writer thread; wait until the link is open if asked.
+        """Open the link; wait until it is open unless ``timeout_s`` is None.
 
-        Raises LinkError if the endpoint cannot be reached within ``timeout_s`` (None: do not
-        wait; the thread keeps trying with backoff).
+        Raises LinkError if it is not open within ``timeout_s`` (with None, ``poll`` keeps
+        trying with backoff).
         """
-        if self.is_connected:
+        if self._wanted:
             return
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._run, daemon=True, name="joint-targets")
-        self._thread.start()
-        if timeout_s is not None and not self._linked.wait(timeout_s):
-            self.close()
-            raise LinkError(f"cannot connect to Modbus {self.endpoint} within {timeout_s} s")
+        self._wanted = True
+        self._linked_before = False
+        self._backoff.succeeded()
+        self.poll(time.monotonic_ns())
+        if timeout_s is None:
+            return
+        deadline_ns = time.monotonic_ns() + round(timeout_s * 1e9)
+        while not self.is_connected:
+            if time.monotonic_ns() >= deadline_ns:
+                self.close()
+                raise LinkError(
+                    f"joint targets {self.endpoint}: cannot connect within {timeout_s} s "
+                    f"({self.last_error or 'no answer'})"
+                )
+            wait_readable(-1, 0.002)
+            self.poll(time.monotonic_ns())
 
-    def close(self) -> None:
-        """Stop the thread (after the write in flight) and close the link. Idempotent."""
-        self._stop.set()
-        self._wake.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
-            self._thread = None
+    def close(self, *, flush_timeout_s: float = 0.0) -> None:
+        """Close the link; poll no longer reopens it. Idempotent.
+
+        With ``flush_timeout_s`` > 0, first polls (blocking) until the pending and in-flight
+        writes are answered or that time has passed.
+        """
+        deadline_ns = time.monotonic_ns() + round(flush_timeout_s * 1e9)
+        while self._fd >= 0 and (self._pending or self._in_flight):
+            left_ns = deadline_ns - time.monotonic_ns()
+            if left_ns <= 0:
+                break
+            wait_readable(self._fd, left_ns / 1e9)
+            self.poll(time.monotonic_ns())
+        self._wanted = False
+        self._drop()
 
     @property
     def is_connected(self) -> bool:
-        """True while the thread runs and the link is open."""
-        return self._thread is not None and self._thread.is_alive() and self._linked.is_set()
+        """True while the link is open."""
+        return self._fd >= 0
+
+    def fileno(self) -> int:
+        """The socket's (or serial port's) descriptor to select on for replies; -1 while down."""
+        return self._fd
 
     def write(self, value: ArrayLike, mode: Mode = Mode.TRACK, *, source_ns: int = 0) -> None:
-        """Queue the newest joint targets (6, rad); never blocks.
+        """Send the newest joint targets (6, rad) now, or keep them pending; never blocks.
 
         ``source_ns`` (monotonic) is when the input these targets answer arrived, e.g. the F/T
-        frame; it comes back as ``stats.last_source_ns`` once the write is acknowledged, so the
-        caller can measure sensor-to-command latency. Non-finite targets are refused (counted in
+        frame; it comes back as ``stats.last_sent_source_ns`` once sent and
+        ``stats.last_source_ns`` once acknowledged. Non-finite targets are refused (counted in
         ``stats.refused``), never sent.
         """
         q = np.array(value, dtype=np.float64).reshape(JOINTS)  # a copy: the caller may reuse
         if not np.isfinite(q).all():
             self.stats.refused += 1
             return
-        now = time.monotonic_ns()
-        with self._lock:
-            if self._pending is not None:
-                self.stats.superseded += 1
-            self._pending = (q, mode, now, source_ns)
-            self.stats.submitted += 1
-        self._wake.set()
+        now_ns = time.monotonic_ns()
+        self.stats.submitted += 1
+        if self._pending is not None:
+            self.stats.superseded += 1
+        self._pending = (q, mode, _Request(0, now_ns, source_ns))
+        try:
+            self._send_pending()
+        except Exception as err:  # whatever happens (even a bug), the caller's loop carries on
+            self._fail(err, now_ns)
+
+    def poll(self, now_ns: int) -> None:
+        """Open the link when due, take replies, check timeouts, send the pending targets."""
+        try:
+            if self._fd < 0 and not self._link_up(now_ns):
+                return
+            self._take_replies(now_ns)
+            if self._in_flight and now_ns - self._in_flight[0].sent_ns > self._timeout_ns:
+                self.stats.timeouts += 1
+                raise LinkError(
+                    f"joint targets {self.endpoint}: no reply to write "
+                    f"#{self._in_flight[0].sequence} within {self.endpoint.timeout_s} s"
+                )
+            self._send_pending()
+        except Exception as err:  # whatever happens (even a bug), the caller's loop carries on
+            self._fail(err, now_ns)
 
     def status(self) -> LinkStatus:
         """Link health; ``samples`` counts acknowledged writes, ``age_ns`` the last one's age."""
@@ -169,88 +229,130 @@ class JointTargetsWriter(Writer[ArrayLike]):
             stalls=0,
             reconnects=self.stats.reconnects,
             errors=self.errors,
-            last_error="" if self.last_error is None else str(self.last_error),
+            last_error="" if self.last_error is None else error_text(self.last_error),
         )
 
-    def _take(self) -> tuple[NDArray[np.float64], Mode, int, int] | None:
-        with self._lock:
-            pending, self._pending = self._pending, None
-        return pending
+    # -- requests and replies ----------------------------------------------------------------
 
-    def _run(self) -> None:
-        client: ModbusClient | None = None
-        delay_s = self._backoff_s[0]
-        while not self._stop.is_set():
-            try:
-                if client is None:
-                    client = self._open()
-                    if client is None:
-                        self._stop.wait(delay_s)
-                        delay_s = min(2 * delay_s, self._backoff_s[1])
-                        continue
-                    delay_s = self._backoff_s[0]
-                self._wake.wait(0.1)
-                self._wake.clear()
-                pending = self._take()
-                if pending is not None and not self._write(client, *pending):
-                    self._drop(client)
-                    client = None
-            except Exception as err:  # whatever happens (even a bug), the thread carries on
-                self.errors += 1
-                self.last_error = err
-                if client is not None:
-                    self._drop(client)
-                    client = None
-        if client is not None:
-            client.close()
-        self._linked.clear()
+    def _send_pending(self) -> None:
+        pending = self._pending
+        if pending is None or self._fd < 0 or len(self._in_flight) >= self.max_in_flight:
+            return
+        q, mode, request = pending
+        sequence = (self._sequence + 1) & 0xFFFF
+        self._request.fill(q, sequence, mode)
+        if os.write(self._fd, self._request_bytes) != self._request_bytes.nbytes:
+            raise LinkError(f"joint targets {self.endpoint}: send buffer full")
+        sent_ns = time.monotonic_ns()
+        self._sequence = sequence
+        self._pending = None
+        self._in_flight.append(_Request(sequence, request.submitted_ns, request.source_ns, sent_ns))
+        stats = self.stats
+        stats.sent += 1
+        stats.in_flight = len(self._in_flight)
+        stats.last_sent_ns = sent_ns
+        stats.last_sent_source_ns = request.source_ns
 
-    def _open(self) -> ModbusClient | None:
-        client = self.endpoint.client()
-        if client.connect():
-            self._linked.set()
-            return client
-        self.last_error = LinkError(f"cannot connect to Modbus {self.endpoint}")
-        client.close()
-        return None
-
-    def _drop(self, client: ModbusClient) -> None:
-        client.close()
-        self._linked.clear()
-        self.stats.reconnects += 1
-
-    def _write(
-        self,
-        client: ModbusClient,
-        q: NDArray[np.float64],
-        mode: Mode,
-        submitted_ns: int,
-        source_ns: int,
-    ) -> bool:
-        """One write; False when the link must be reopened."""
-        self._sequence = (self._sequence + 1) & 0xFFFF
-        registers = self._map.encode(JointTargets(tuple(q.tolist()), self._sequence, mode))
+    def _take_replies(self, now_ns: int) -> None:
         try:
-            reply = client.write_registers(
-                self._map.start, registers, device_id=self._map.device_id
-            )
-        except ModbusException as err:
-            self.stats.timeouts += 1
-            self.errors += 1
-            self.last_error = LinkError(f"Modbus {self.endpoint}: {err}")
-            return False
-        if getattr(reply, "isError", lambda: False)():
-            code = int(getattr(reply, "exception_code", 0))
-            self.stats.exceptions[code] = self.stats.exceptions.get(code, 0) + 1
-            self.errors += 1
+            data = os.read(self._fd, READ_BYTES)
+        except BlockingIOError:
+            return
+        if not data:
+            if self.endpoint.serial_port is not None:
+                return  # a tty set for timeout 0 reads b"" when empty
+            raise LinkError(f"joint targets {self.endpoint}: closed by the robot")
+        rx, ack = self._rx, self._ack
+        rx += data
+        while rx:
+            if rx.startswith(ack):
+                del rx[: len(ack)]
+                self._answered(now_ns, None)
+                continue
+            size = rtu_frame_size(self._framer.decoder, rx)
+            if size == 0:
+                return  # the rest of a reply is still on its way
+            try:
+                _, reply = self._framer.handleFrame(bytes(rx[:size]), self._map.device_id, 0)
+            except ModbusException:
+                reply = None
+            del rx[:size]
+            if reply is None:
+                self._error(ProtocolError(f"joint targets {self.endpoint}: garbled reply"))
+            else:
+                self._answered(now_ns, reply)
+
+    def _answered(self, now_ns: int, reply: ModbusPDU | None) -> None:
+        """The reply to the oldest request in flight: None for the acknowledgement."""
+        if not self._in_flight:
+            self._error(ProtocolError(f"joint targets {self.endpoint}: reply to no request"))
+            return
+        request = self._in_flight.popleft()
+        stats = self.stats
+        stats.in_flight = len(self._in_flight)
+        if reply is None:
+            stats.written += 1
+            stats.last_write_ns = now_ns
+            stats.last_latency_ns = now_ns - request.submitted_ns
+            stats.last_source_ns = request.source_ns
+        elif reply.isError():
+            code = int(reply.exception_code)
+            stats.exceptions[code] = stats.exceptions.get(code, 0) + 1
             name = ExcCodes(code).name if code in ExcCodes._value2member_map_ else "UNKNOWN"
-            self.last_error = ModbusExceptionError(
-                code, name, f"write of joint targets #{self._sequence} to {self.endpoint}"
+            self._error(
+                ModbusExceptionError(
+                    code, name, f"write of joint targets #{request.sequence} to {self.endpoint}"
+                )
             )
-            return True
-        now = time.monotonic_ns()
-        self.stats.written += 1
-        self.stats.last_write_ns = now
-        self.stats.last_latency_ns = now - submitted_ns
-        self.stats.last_source_ns = source_ns
+        else:
+            self._error(
+                ProtocolError(
+                    f"joint targets {self.endpoint}: unexpected reply to #{request.sequence}: "
+                    f"{type(reply).__name__}"
+                )
+            )
+
+    # -- the link ----------------------------------------------------------------------------
+
+    def _link_up(self, now_ns: int) -> bool:
+        """Whether the link is open now: opens it when due, completes a TCP connect."""
+        if self._link is None:
+            if not (self._wanted and self._backoff.due(now_ns)):
+                return False
+            if self.endpoint.serial_port is not None:
+                self._link = serial.Serial(
+                    self.endpoint.serial_port, self.endpoint.baudrate, timeout=0
+                )
+            else:
+                self._link = start_tcp_connect((self.endpoint.host, self.endpoint.port))
+                self._connect_started_ns = now_ns
+        link = self._link
+        if isinstance(link, socket.socket) and not tcp_connected(link):
+            if now_ns - self._connect_started_ns > self._connect_timeout_ns:
+                raise LinkError(f"joint targets {self.endpoint}: connect timed out")
+            return False
+        self._fd = link.fileno()
+        self._backoff.succeeded()
+        if self._linked_before:
+            self.stats.reconnects += 1
+        self._linked_before = True
         return True
+
+    def _error(self, err: Exception) -> None:
+        self.errors += 1
+        self.last_error = err
+
+    def _fail(self, err: Exception, now_ns: int) -> None:
+        """Count ``err``, drop the link and schedule its reopening."""
+        self._error(err)
+        self._drop()
+        self._backoff.failed(now_ns)
+
+    def _drop(self) -> None:
+        link, self._link, self._fd = self._link, None, -1
+        self._rx.clear()
+        self._in_flight.clear()
+        self.stats.in_flight = 0
+        if link is not None:
+            with contextlib.suppress(Exception):  # a broken link may fail to close too
+                link.close()
