@@ -1,17 +1,22 @@
 """Drivers: the F/T emulator streaming at 1 kHz over a pty while the serial driver reads it.
 
-The emulator runs in its own process (spawned), the driver's reader thread in this one, as on a
-rig. Each frame carries its slot number in Fx (kgf scale 1, so the float is exact) and the
-emulator logs the monotonic time just before writing it; both processes read the same system
-monotonic clock, so receive latency = driver receive time - emulator write time. CPU is each
-process's user + system time over the streaming window (os.times), as a share of one core.
-Also timed: the framer per frame, gravity compensation per call, and warm-started IK per tick.
+The emulator runs in its own process (spawned); this process polls the driver (select on its
+fd, then poll), as the rig's loop does. Each frame carries its slot number in Fx (kgf scale 1,
+so the float is exact) and the emulator logs the monotonic time just before writing it; both
+processes read the same system monotonic clock, so receive latency = driver receive time -
+emulator write time. CPU is each process's user + system time over the streaming window
+(os.times), as a share of one core.
+Also timed: the framer per frame, the polled drivers per call (FtSerial.poll with one frame
+waiting on a pty, JointTargetsWriter.write, and its poll taking one acknowledgement over a
+loopback socket), gravity compensation per call, and warm-started IK per tick.
 """
 
 from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import select
+import socket
 import tempfile
 import time
 from multiprocessing.connection import Connection
@@ -24,6 +29,7 @@ from benchmarks.harness import Result, quantiles_us
 from hilrig.drivers import FramerConfig, FtSerial, GravityCompensator, KunweiFramer, ToolLoad
 from hilrig.drivers.emulated import EmulatorConfig, FtEmulator
 from hilrig.drivers.ft_sensor import encode_frame
+from hilrig.drivers.joint_targets import JointTargetsWriter, ModbusEndpoint
 from hilrig.robot import RobotModel
 
 RATE_HZ = 1000.0
@@ -74,11 +80,12 @@ def bench_stream() -> list[Result]:
         ours.send("start")
         received: list[tuple[int, float]] = []
         with FtSerial(port_path, framer_config=UNIT) as ft:
-            ft.drain()
+            ft.poll(time.monotonic_ns())  # the frames read while connecting
             cpu0, wall0 = cpu_s(), time.monotonic()
             while time.monotonic() - wall0 < STREAM_S:
-                time.sleep(0.05)
-                received.extend((s.t_ns, s.wrench_in_sensor[0]) for s in ft.drain())
+                select.select([ft.fileno()], [], [], 0.01)
+                polled = ft.poll(time.monotonic_ns())
+                received.extend((s.t_ns, s.wrench_in_sensor[0]) for s in polled)
             cpu1, wall1 = cpu_s(), time.monotonic()
             status, framer = ft.status(), ft.framer_stats()
         ours.send("stop")
@@ -125,6 +132,60 @@ def bench_framer() -> list[Result]:
         framer.feed(frames[k % 1000], 0)
     per_frame_us = (time.perf_counter_ns() - start) / count / 1e3
     return [Result("drivers", "framer feed per 28-byte frame", per_frame_us, "us", "", None)]
+
+
+def bench_polled_calls(count: int = 5000) -> list[Result]:
+    """Per call: F/T poll with one frame waiting, writer.write, writer.poll with one reply."""
+    master, slave = os.openpty()
+    ft = FtSerial(os.ttyname(slave))
+    ft.connect(first_sample_timeout_s=None)
+    frame, poll_ns = encode_frame((1.0, 2.0, 3.0, 0.1, 0.2, 0.3)), np.empty(count, np.int64)
+    clock = time.perf_counter_ns
+    os.write(master, frame + frame)  # the framer locks on a frame followed by a header
+    while not ft.poll(time.monotonic_ns()):
+        select.select([ft.fileno()], [], [], 1.0)
+    for k in range(count):
+        os.write(master, frame)
+        got: list[object] = []
+        while not got:  # the pty may hand the frame over in pieces: time the poll that frames it
+            select.select([ft.fileno()], [], [], 1.0)
+            start = clock()
+            got = list(ft.poll(time.monotonic_ns()))
+            poll_ns[k] = clock() - start
+    ft.close()
+    os.close(master)
+    os.close(slave)
+    with socket.create_server(("127.0.0.1", 0)) as listener:
+        writer = JointTargetsWriter(ModbusEndpoint(port=listener.getsockname()[1]))
+        writer.connect(timeout_s=None)
+        peer, _ = listener.accept()
+        while not writer.is_connected:
+            writer.poll(time.monotonic_ns())
+        ack = bytes(writer._ack)
+        q, write_ns, reply_ns = np.zeros(6), np.empty(count, np.int64), np.empty(count, np.int64)
+        with peer:
+            for k in range(count):
+                q[0] = 1e-4 * k
+                start = clock()
+                writer.write(q)
+                write_ns[k] = clock() - start
+                peer.recv(64)
+                peer.sendall(ack)
+                select.select([writer.fileno()], [], [], 1.0)
+                start = clock()
+                writer.poll(time.monotonic_ns())
+                reply_ns[k] = clock() - start
+        assert writer.stats.written == count and writer.errors == 0
+        writer.close()
+    out = []
+    for name, samples in (
+        ("FtSerial.poll, one frame waiting", poll_ns),
+        ("JointTargetsWriter.write (sent at once)", write_ns),
+        ("JointTargetsWriter.poll, one acknowledgement", reply_ns),
+    ):
+        q_us = quantiles_us(samples)
+        out.append(Result("drivers", f"{name} p50", q_us["p50"], "us", "", None, q_us))
+    return out
 
 
 def bench_compensation() -> list[Result]:
@@ -175,4 +236,6 @@ def bench_ik() -> list[Result]:
 
 
 def run() -> list[Result]:
-    return bench_stream() + bench_framer() + bench_compensation() + bench_ik()
+    return (
+        bench_stream() + bench_framer() + bench_polled_calls() + bench_compensation() + bench_ik()
+    )

@@ -108,6 +108,7 @@ class JointTargetsWriter(Writer[ArrayLike]):
         self._framer = FramerRTU(DecodePDU(is_server=False))
         self._request = RequestFrame(self._map)
         self._request_bytes = self._request.frame.data  # a view: fill() shows through
+        self._request.fill(np.zeros(JOINTS), 0, Mode.HOLD)  # load the compiled kernel now
         self._ack = FramerRTU(DecodePDU(is_server=True)).buildFrame(
             WriteMultipleRegistersResponse(
                 address=self._map.start, count=self._map.count, dev_id=self._map.device_id
