@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from hilrig.rig.rings import Rows
     from hilrig.rig.safety import SafetyClamp, SafetyConfig
     from hilrig.rig.session import RigKind, SessionConfig, SessionResult, record_session
-    from hilrig.rig.timing import DeadlineTimer
+    from hilrig.rig.timing import LatencyHistogram
     from hilrig.rig.trajectory import Trajectory, make_trajectory
     from hilrig.rig.view_feed import VIEW_RATE_HZ, ViewBatch, ViewCounts, ViewForwarder
     from hilrig.rig.virtual import VirtualInput
@@ -44,7 +44,7 @@ _MODULES = {
     "rings": ("Rows",),
     "safety": ("SafetyClamp", "SafetyConfig"),
     "session": ("RigKind", "SessionConfig", "SessionResult", "record_session"),
-    "timing": ("DeadlineTimer",),
+    "timing": ("LatencyHistogram",),
     "trajectory": ("Trajectory", "make_trajectory"),
     "view_feed": ("VIEW_RATE_HZ", "ViewBatch", "ViewCounts", "ViewForwarder"),
     "virtual": ("VirtualInput",),
@@ -63,7 +63,7 @@ __all__ = [
     "VIEW_RATE_HZ",
     "ChildProcess",
     "ControlLoop",
-    "DeadlineTimer",
+    "LatencyHistogram",
     "LiveReportLike",
     "LiveViewPort",
     "LoopConfig",

@@ -5,20 +5,21 @@ returns its endpoints. The child runs the rig's one slot loop in its main thread
 priority where permitted, see :mod:`hilrig.drivers.emulated.slots`), with this pipe among the
 descriptors it waits on: faults and counter requests are served between slots, no other thread.
 ``counters()`` returns what the rig has sent so far; ``stop()`` ends it and returns the final
-counts (after its devices closed), also kept in ``final_counters``. The child ignores SIGINT
-(the parent handles Ctrl-C and stops it in order) and stops by itself when the parent goes away.
+counts (after its devices closed), also kept in ``final_counters``. It runs on the spawn helper
+(:class:`~hilrig.rig.child.ChildProcess`): the child ignores SIGINT (the parent handles Ctrl-C
+and stops it in order) and stops by itself when the parent goes away.
 """
 
 from __future__ import annotations
 
 import contextlib
-import multiprocessing as mp
-import signal
 import threading
 from multiprocessing.connection import Connection
+from typing import Any
 
 from hilrig.drivers.emulated.rig import EmulatedRig, RigConfig, RigCounters, RigEndpoints
 from hilrig.errors import HilrigError, LinkError
+from hilrig.rig.child import ChildProcess, report
 
 __all__ = ["FAULTS", "RigCounters", "RigProcess"]
 
@@ -40,9 +41,10 @@ REPLY_TIMEOUT_S = 10.0
 
 
 def _serve(conn: Connection, scenario: str, config: RigConfig) -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    """The child: open the rig, report its endpoints, run its slot loop until told to stop or
+    the parent is gone, report the final counters."""
     rig = EmulatedRig(scenario, config=config)
-    conn.send(rig.open())
+    report(conn, "endpoints", rig.open())
 
     def on_message() -> None:
         try:
@@ -53,12 +55,12 @@ def _serve(conn: Connection, scenario: str, config: RigConfig) -> None:
         if message == "stop":
             rig.request_stop()
         elif message == "counters":
-            conn.send(rig.counters())
+            report(conn, "counters", rig.counters())
         else:
             name, args = message
             part, method = name.split(".")
             getattr(getattr(rig, part), method)(*args)
-            conn.send("ok")
+            report(conn, "ok")
 
     rig.loop.watch(conn.fileno(), on_message)
     try:
@@ -66,81 +68,59 @@ def _serve(conn: Connection, scenario: str, config: RigConfig) -> None:
     finally:
         rig.loop.unwatch(conn.fileno())
         rig.close()
-        with contextlib.suppress(OSError):
-            conn.send(rig.counters())
+        report(conn, "counters", rig.counters())
 
 
 class RigProcess:
     """An emulated rig in its own process; ``with RigProcess(...) as endpoints:``."""
 
     def __init__(self, scenario: str, *, config: RigConfig | None = None) -> None:
-        context = mp.get_context("spawn")  # the parent has threads: never fork it
-        self._conn, child = context.Pipe()
-        self._process = context.Process(
-            target=_serve,
-            args=(child, scenario, config or RigConfig()),
-            name="hilrig-emulated-rig",
-            daemon=True,
-        )
-        self._child = child
+        self._child = ChildProcess("hilrig-emulated-rig", "the emulated rig", LinkError)
+        self._args = (scenario, config or RigConfig())
         self._lock = threading.Lock()  # one request and its reply at a time
         self.final_counters: RigCounters | None = None
 
     def start(self, timeout_s: float = 60.0) -> RigEndpoints:
         """Spawn the rig and wait for its endpoints; raises LinkError if it does not come up."""
-        self._process.start()
-        self._child.close()
-        if not self._conn.poll(timeout_s):
-            self.stop()
-            raise LinkError(f"the emulated rig did not start within {timeout_s} s")
-        endpoints: RigEndpoints = self._conn.recv()
+        self._child.start(_serve, self._args)
+        endpoints: RigEndpoints = self._child.wait_report("endpoints", timeout_s)
         return endpoints
 
     def stop(self) -> RigCounters | None:
         """Stop the rig (its devices close in order), join the process and return its final
-        counters (None if it had died or did not report them)."""
+        counters (None if it had died or did not report them). Calling it again is harmless."""
         with self._lock:
-            if self._process.is_alive():
-                with contextlib.suppress(OSError, EOFError):  # the rig may be gone already
-                    self._conn.send("stop")
-                    while self._conn.poll(REPLY_TIMEOUT_S):
-                        reply = self._conn.recv()
-                        if isinstance(reply, RigCounters):
-                            self.final_counters = reply
-                            break
-                self._process.join(timeout=10)
-            if self._process.is_alive():
-                self._process.kill()
-                self._process.join(timeout=5)
-            self._conn.close()
+            if self._child.alive():
+                with contextlib.suppress(HilrigError):  # the rig may be gone already
+                    self._child.send("stop")
+                    if self._child.poll(REPLY_TIMEOUT_S):
+                        self.final_counters = self._child.receive("counters")
+            self._child.stop(REPLY_TIMEOUT_S)
+            self._child.close()
         return self.final_counters
 
     def counters(self) -> RigCounters:
-        """What the running rig has sent and applied so far."""
-        reply = self._request("counters")
-        if not isinstance(reply, RigCounters):
-            raise LinkError("the emulated rig did not report its counters")
-        return reply
+        """What the running rig has sent and applied so far; raises LinkError if it is gone."""
+        counters: RigCounters = self._request("counters", "counters")
+        return counters
 
     def fault(self, name: str, *args: object) -> None:
         """Inject fault ``name`` (one of FAULTS, e.g. "ft.stall", 0.05) into the running rig;
         it applies from the rig's next slot."""
         if name not in FAULTS:
             raise HilrigError(f"unknown fault {name!r}; known: {', '.join(sorted(FAULTS))}")
-        if self._request((name, args)) != "ok":
-            raise LinkError(f"the emulated rig did not take fault {name}")
+        self._request((name, args), "ok")
 
-    def _request(self, message: object) -> object:
+    def _request(self, message: object, kind: str) -> Any:
         with self._lock:
-            self._conn.send(message)
-            if not self._conn.poll(REPLY_TIMEOUT_S):
-                return None
-            reply: object = self._conn.recv()
-            return reply
+            self._child.send(message)
+            if not self._child.poll(REPLY_TIMEOUT_S):
+                raise LinkError(f"the emulated rig did not answer {kind} in {REPLY_TIMEOUT_S} s")
+            return self._child.receive(kind)
 
     @property
     def pid(self) -> int | None:
-        return self._process.pid
+        return self._child.pid
 
     def __enter__(self) -> RigEndpoints:
         return self.start()

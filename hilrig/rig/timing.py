@@ -1,11 +1,9 @@
-"""Pacing of the real-time loop by absolute deadlines, and latency histograms that never allocate.
+"""The real-time loop's thread settings, and latency histograms that never allocate.
 
-``DeadlineTimer.wait()`` sleeps until shortly before the next deadline and spins the rest, so a
-tick starts within tens of microseconds of its deadline without a real-time kernel; deadlines
-advance by whole periods from the start, so lateness never accumulates into drift. A tick that
-starts more than ``max_behind`` periods late resynchronises instead of bursting to catch up
-(counted in ``skipped``). On Linux the thread's timer slack is set to 1 us (prctl), which makes
-``time.sleep`` wake within a few microseconds of its target instead of the default 50 us.
+:func:`realtime_python` runs a block without cyclic garbage collection, with 1 us timer slack
+(Linux prctl: sleeps and ``select`` wake within a few microseconds of their target instead of the
+default 50 us) and under SCHED_FIFO where permitted. :class:`LatencyHistogram` counts durations
+in 1 us bins.
 """
 
 from __future__ import annotations
@@ -15,7 +13,6 @@ import ctypes.util
 import gc
 import os
 import sys
-import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -119,35 +116,3 @@ class LatencyHistogram:
     def counts(self) -> NDArray[np.int64]:
         """The bin counts (a copy), bin i = [i, i+1) us."""
         return self._counts.copy()
-
-
-class DeadlineTimer:
-    """Absolute-deadline pacing at ``period_ns``; ``spin_ns`` before each deadline is spun."""
-
-    def __init__(self, period_ns: int, *, spin_ns: int = 150_000, max_behind: int = 20) -> None:
-        self.period_ns = period_ns
-        self.spin_ns = spin_ns
-        self.max_behind = max_behind
-        self.deadline_ns = 0
-        self.skipped = 0
-
-    def start(self, now_ns: int | None = None) -> None:
-        """The first deadline is one period from now."""
-        self.deadline_ns = (time.monotonic_ns() if now_ns is None else now_ns) + self.period_ns
-
-    def wait(self) -> tuple[int, int]:
-        """Wait for the next deadline; returns (tick start ns, lateness ns) and advances it."""
-        deadline = self.deadline_ns
-        remaining = deadline - time.monotonic_ns() - self.spin_ns
-        if remaining > 0:
-            time.sleep(remaining / 1e9)
-        now = time.monotonic_ns()
-        while now < deadline:
-            now = time.monotonic_ns()
-        lateness = now - deadline
-        self.deadline_ns = deadline + self.period_ns
-        if lateness > self.max_behind * self.period_ns:
-            behind = lateness // self.period_ns
-            self.skipped += behind
-            self.deadline_ns += behind * self.period_ns
-        return now, lateness
