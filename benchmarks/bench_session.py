@@ -26,6 +26,7 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import asdict
 from pathlib import Path
 
 from benchmarks.harness import Result
@@ -142,6 +143,9 @@ def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[
     s2a = summary.sensor_to_ack.summary_us()
     compute = summary.compute.summary_us()
     missed_pct = 100 * summary.missed_deadlines / summary.ticks
+    rig_p99 = (
+        float("nan") if result.rig_counters is None else result.rig_counters.slot_lateness_us[1]
+    )
     detail = {
         "ticks": summary.ticks,
         "missed": summary.missed_deadlines,
@@ -154,6 +158,7 @@ def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[
         "messages_written": result.messages_written,
         "drops": result.drops,
         "rig_cpu_pct": measured.rig_cpu_pct,
+        "rig_counters": None if result.rig_counters is None else asdict(result.rig_counters),
         "view": None if result.view is None else _view_counts(result),
     }
 
@@ -175,6 +180,7 @@ def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[
         row("recorder drops", result.drops, "rows", "== 0", result.drops == 0),
         row("hold ticks", summary.hold_ticks, "ticks", "== 0", summary.hold_ticks == 0),
         row("fallback ticks", summary.fallback_ticks, "ticks"),
+        row("emulated sensor's own send lateness p99 (rig slots)", rig_p99, "us"),
         row("emulated rig CPU", measured.rig_cpu_pct, "% of a core", "<= 25",
             measured.rig_cpu_pct <= 25),
     ]  # fmt: skip

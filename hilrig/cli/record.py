@@ -114,6 +114,14 @@ def print_result(console: Console, result: SessionResult) -> None:
         f"{len(result.events)} events, {summary.hold_ticks} hold ticks",
         highlight=False,
     )
+    rig = result.rig_counters
+    if rig is not None:
+        p50, p99, _ = rig.slot_lateness_us
+        console.print(
+            f"  emulated rig: {rig.ft_frames_sent} F/T frames and {rig.joint_frames_sent} joint "
+            f"states sent, its own slots late p50 {p50:.0f} us p99 {p99:.0f} us",
+            highlight=False,
+        )
     if result.view is not None:
         view = result.view
         line = f"  live view: {view.shown} batches shown, {view.sent} sent, {view.dropped} dropped"

@@ -99,6 +99,7 @@ class RigCounters:
     slots: int  # slots run
     slots_late: int  # slots begun a period or more after their deadline
     slots_skipped: int  # slots not run at all (the loop fell more than MAX_BEHIND behind)
+    slot_lateness_us: tuple[float, float, float]  # p50, p99, max of slot start - deadline
 
 
 class EmulatedRig:
@@ -197,6 +198,11 @@ class EmulatedRig:
             slots=loop.slots,
             slots_late=loop.slots_late,
             slots_skipped=loop.slots_skipped,
+            slot_lateness_us=(
+                loop.lateness.quantile_us(0.5),
+                loop.lateness.quantile_us(0.99),
+                loop.lateness.max_ns / 1000,
+            ),
         )
 
     def _slot(self, slot_ns: int, now_ns: int) -> None:

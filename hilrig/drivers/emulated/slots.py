@@ -25,7 +25,7 @@ import time
 from collections.abc import Callable
 from typing import Self
 
-from hilrig.rig.timing import tighten_timer_slack
+from hilrig.rig.timing import LatencyHistogram, tighten_timer_slack
 
 RIG_PRIORITY = 40
 MAX_BEHIND = 5
@@ -46,6 +46,7 @@ class SlotLoop:
         self.slots = 0  # slots run
         self.slots_late = 0  # slots begun a period or more after their deadline
         self.slots_skipped = 0  # slots not run: the loop was more than MAX_BEHIND late
+        self.lateness = LatencyHistogram()  # each slot's start after its deadline
 
     def watch(self, fd: int, on_readable: Callable[[], None]) -> None:
         """Call ``on_readable()`` in the loop whenever ``fd`` is readable."""
@@ -84,6 +85,7 @@ class SlotLoop:
                     deadline += behind * period
                 if behind >= 1:
                     self.slots_late += 1
+                self.lateness.add(now - deadline)
                 self._on_slot(deadline, now)
                 self.slots += 1
                 deadline += period
