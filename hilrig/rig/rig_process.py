@@ -56,6 +56,9 @@ def _serve(conn: Connection, scenario: str, config: RigConfig) -> None:
             rig.request_stop()
         elif message == "counters":
             report(conn, "counters", rig.counters())
+        elif message == "start scenario":
+            rig.start_scenario()
+            report(conn, "ok")
         else:
             name, args = message
             part, method = name.split(".")
@@ -103,6 +106,11 @@ class RigProcess:
         """What the running rig has sent and applied so far; raises LinkError if it is gone."""
         counters: RigCounters = self._request("counters", "counters")
         return counters
+
+    def start_scenario(self) -> None:
+        """Start the volunteer scenario's clock now (with ``RigConfig(scenario_starts_at_open=
+        False)``, it stands at 0 until then); applies from the rig's next slot."""
+        self._request("start scenario", "ok")
 
     def fault(self, name: str, *args: object) -> None:
         """Inject fault ``name`` (one of FAULTS, e.g. "ft.stall", 0.05) into the running rig;

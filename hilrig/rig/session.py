@@ -19,6 +19,7 @@ unwinds in reverse order.
 
 from __future__ import annotations
 
+import gc
 import io
 import json
 import threading
@@ -32,7 +33,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from hilrig.drivers.emulated.rig import RigEndpoints
+from hilrig.drivers.emulated.rig import RigConfig, RigEndpoints
 from hilrig.drivers.emulated.scenarios import scenario as make_scenario
 from hilrig.drivers.ft_serial import FtSerial
 from hilrig.drivers.gravity import GravityCompensator, ToolLoad
@@ -174,6 +175,8 @@ def record_session(
     session_id = config.session_id_or_now()
     model = RobotModel()
     warm_up()  # numba's first-call costs, before any device talks
+    gc.collect()  # and the collector's big pass: the loop's own (realtime_python) is then short
+    gc.freeze()
     with ExitStack() as stack:
         if live is not None:  # first: its start-up must not delay the rig's scenario
             stack.callback(live.close)
@@ -192,7 +195,8 @@ def record_session(
         recorder.spawn()  # imports while the rig comes up
         rig = None
         if config.rig is RigKind.EMULATED:
-            rig = RigProcess(config.scenario)
+            # the scenario's clock starts with the first tick, however long start-up takes
+            rig = RigProcess(config.scenario, config=RigConfig(scenario_starts_at_open=False))
             endpoints = rig.start()
             stack.callback(rig.stop)
             if rig_ready is not None:
@@ -205,6 +209,17 @@ def record_session(
         start_pose = model.fk(q0)
         compensator = GravityCompensator(config.tool)
         compensator.tare(_average_wrench(devices, config.tare_s), start_pose[:3, :3])
+        loop = ControlLoop(
+            config.loop,
+            io=devices,
+            compensator=compensator,
+            trajectory=make_trajectory(config.trajectory, start_pose, **config.trajectory_options),
+            safety=SafetyClamp(SafetyConfig(dt_s=1.0 / config.loop.rate_hz), model, q0),
+            model=model,
+            on_event=collect,
+            virtual=config.virtual,
+            watchdog=lambda: "" if recorder.alive() else "the recorder process died",
+        )
         recorder.begin(
             SessionInfo.starting_now(
                 session_id=session_id,
@@ -222,19 +237,10 @@ def record_session(
         _wait_for_recorder(devices, recorder)
         if recorder_ready is not None:
             recorder_ready(recorder)
-        loop = ControlLoop(
-            config.loop,
-            io=devices,
-            compensator=compensator,
-            trajectory=make_trajectory(config.trajectory, start_pose, **config.trajectory_options),
-            safety=SafetyClamp(SafetyConfig(dt_s=1.0 / config.loop.rate_hz), model, q0),
-            model=model,
-            on_event=collect,
-            virtual=config.virtual,
-            watchdog=lambda: "" if recorder.alive() else "the recorder process died",
-        )
         if on_start is not None:
             on_start(loop)
+        if rig is not None:
+            rig.start_scenario()
         recorder_error = ""
         messages: int | None = None
         view = None

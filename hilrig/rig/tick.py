@@ -35,7 +35,9 @@ from hilrig.drivers.emulated.rig import HOME_Q_RAD
 from hilrig.drivers.gravity import GravityCompensator
 from hilrig.rig.clamp_kernels import HOLDING, NON_FINITE, candidate, exceeds, finish
 from hilrig.rig.records import AXES, JOINTS, TICK_DTYPE
+from hilrig.rig.rings import Ring, RingSpec
 from hilrig.rig.safety import SafetyClamp, SafetyConfig
+from hilrig.rig.trajectory import make_trajectory
 from hilrig.robot import RobotModel
 from hilrig.robot.kinematics import CompiledChain, fk_into, ik_into, ik_work
 
@@ -349,36 +351,28 @@ class CompiledTick:
 
 
 def warm_up() -> None:
-    """Load (or compile) the tick's kernels and run them once on a throwaway state, so that no
-    first-call cost lands on a session's first ticks."""
+    """Load (or compile) the tick's kernels and run them once on a throwaway state built like a
+    session's (read-only trajectory rotation, rows in a shared-memory ring: numba compiles per
+    array type), so that no first-call cost lands on a session's first ticks."""
     model = RobotModel()
     q0 = np.asarray(HOME_Q_RAD, dtype=np.float64)
     controller = make("adaptive", combine((preset("adaptive"), 3), (preset("adaptive-joint"), 6)))
     clamp = SafetyClamp(SafetyConfig(), model, q0)
     tick = CompiledTick.build(controller, model, clamp, GravityCompensator(), q0, 0.001)
+    trajectory = make_trajectory("hold", model.fk(q0))
+    position = np.zeros(3)
+    trajectory.desired(0.0, position)
     zeros6 = np.zeros(6)
-    tick.run(
-        SENSOR_OK | ROBOT_OK | COMMAND_OK,
-        zeros6,
-        q0,
-        zeros6,
-        np.zeros(AXES),
-        np.zeros(3),
-        np.eye(3),
-    )
-    rows = np.zeros(1, dtype=TICK_DTYPE)
-    k = tick.arrays
-    fill_tick_row(
-        rows,
-        0,
-        tick.work,
-        k.out,
-        k.contact,
-        k.mass,
-        np.zeros(3),
-        np.zeros(4),
-        np.zeros(7, dtype=np.int64),
-    )
+    flags = SENSOR_OK | ROBOT_OK | COMMAND_OK
+    tick.run(flags, zeros6, q0, zeros6, np.zeros(AXES), position, trajectory.rotation)
+    ring = Ring.create(RingSpec.unique("warm", TICK_DTYPE, 2))
+    try:
+        k = tick.arrays
+        fill_tick_row(ring.rows, 0, tick.work, k.out, k.contact, k.mass, position,
+                      trajectory.orientation, np.zeros(7, dtype=np.int64))  # fmt: skip
+    finally:
+        ring.unlink()
+        ring.close()
 
 
 __all__ = ["CompiledTick", "fill_tick_row", "tick_kernel", "warm_up"]

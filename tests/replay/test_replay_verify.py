@@ -15,6 +15,7 @@ from replay_helpers import (
 )
 
 from hilrig.control import Law
+from hilrig.recording import load
 from hilrig.replay import ReplayError
 from hilrig.replay.verify import summary_lines, verify
 from hilrig.rig import SessionConfig, record_session
@@ -76,6 +77,7 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_a_session_recorded_now_replays_with_zero_difference(recorded: Path) -> None:
     report = verify(recorded)
     assert report.ok, summary_lines(report)
-    assert report.dt_s == 0.001 and report.ticks == pytest.approx(5000, rel=0.02)
+    state = load(recorded, topics=["/controller/state"])["/controller/state"]
+    assert report.dt_s == 0.001 and report.ticks == len(state) > 0  # every recorded tick
     assert report.params_source == "the recording's session metadata"
     assert all(d.size == 0.0 for d in report.largest)

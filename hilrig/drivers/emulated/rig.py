@@ -79,6 +79,7 @@ class RigConfig:
     )
     joint_torque_noise_nm: float = 0.05
     seed: int = 0
+    scenario_starts_at_open: bool = True  # False: its clock waits for start_scenario()
 
 
 @dataclass(frozen=True)
@@ -122,6 +123,7 @@ class EmulatedRig:
         self._rng = np.random.default_rng(self.config.seed)
         self._noise: list[list[float]] = []
         self._slot_t_s = 0.0
+        self._scenario_t0_ns: int | None = None  # None: the scenario's clock waits at 0
         self.loop = SlotLoop(round(1e9 / self.config.rate_hz), self._slot)
         self.ft = FtEmulator(
             self._wrench,
@@ -137,6 +139,8 @@ class EmulatedRig:
     def open(self) -> RigEndpoints:
         """Bind every device to the loop (not running yet); returns the endpoints."""
         self.loop.t0_ns = time.monotonic_ns()
+        if self.config.scenario_starts_at_open:
+            self._scenario_t0_ns = self.loop.t0_ns
         self.plant.advance(self.loop.t0_ns)
         for device in (self.modbus, self.robot_state, self.ft):
             device.attach(self.loop)
@@ -145,6 +149,11 @@ class EmulatedRig:
     def run(self) -> None:
         """Run the slot loop in this thread until ``request_stop()``."""
         self.loop.run()
+
+    def start_scenario(self) -> None:
+        """Start the scenario's clock now (a session calls it at its first tick): until then
+        the volunteer's time stands at 0."""
+        self._scenario_t0_ns = time.monotonic_ns()
 
     def request_stop(self) -> None:
         """Make ``run()`` return after the current slot (any thread, or a signal handler)."""
@@ -208,7 +217,8 @@ class EmulatedRig:
     def _slot(self, slot_ns: int, now_ns: int) -> None:
         self.plant.advance(now_ns)
         self._pose = self._model.fk(self.plant.q_rad)
-        self._slot_t_s = (slot_ns - self.loop.t0_ns) * 1e-9
+        t0_ns = self._scenario_t0_ns
+        self._slot_t_s = 0.0 if t0_ns is None else max(slot_ns - t0_ns, 0) * 1e-9
         self.robot_state.tick(slot_ns)
         self.ft.tick(slot_ns)
         self.modbus.tick(slot_ns)
