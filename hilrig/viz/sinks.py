@@ -128,10 +128,15 @@ class WebServer:
                 self.process.wait()
 
 
+VIEWER_SETTLE_S = 3.0  # a new viewer must still run this long after it listens
+
+
 def spawn_viewer(port: int, timeout_s: float = 20.0) -> None:
     """Start the desktop viewer listening on ``port`` (detached: it outlives this process), or
     use the one already there. Raises ViewError, with the viewer's last words, if it exits or
-    does not listen within ``timeout_s`` (no display: use a file, the web viewer or a URL)."""
+    does not listen within ``timeout_s`` (no display: use a file, the web viewer or a URL). A
+    viewer without a display listens for a moment before it dies: a new one must still run
+    ``VIEWER_SETTLE_S`` after it listens."""
     if _listening(port):
         return
     command = [str(rerun_binary()), "--port", str(port), "--expect-data-soon"]
@@ -143,7 +148,8 @@ def spawn_viewer(port: int, timeout_s: float = 20.0) -> None:
         except OSError as err:
             raise ViewError(f"cannot start the Rerun viewer: {err}") from err
         deadline = time.monotonic() + timeout_s
-        while not _listening(port):
+        settled = None  # the viewer listens before it opens its window, and may die then
+        while settled is None or time.monotonic() < settled:
             if viewer.poll() is not None or time.monotonic() > deadline:
                 log.seek(0)
                 words = [line.strip() for line in log.read().splitlines() if line.strip()]
@@ -151,6 +157,8 @@ def spawn_viewer(port: int, timeout_s: float = 20.0) -> None:
                     f"the Rerun viewer did not start ({words[-1] if words else 'no output'});"
                     " without a display, save to a file or use the web viewer or a viewer's URL"
                 )
+            if settled is None and _listening(port):
+                settled = time.monotonic() + VIEWER_SETTLE_S
             time.sleep(0.05)
 
 

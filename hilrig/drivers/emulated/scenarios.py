@@ -4,7 +4,8 @@ A scenario gives the external wrench on the wrist sensor (sensor frame, N and N*
 time and the sensor's pose, and the external joint torques (N*m) the joint modules measure, as
 tuples of six floats: the rig calls them every 1 ms slot, so they are scalar code (the paper's
 profiles evaluated segment by segment, bit-identical to their vectorised form). Times are seconds
-since the rig started; ``period_s`` repeats the collision for long sessions.
+since the scenario's clock started (a session's first tick; ``EmulatedRig.start_scenario``);
+``period_s`` repeats the collision for long sessions.
 
 - ``paper-end-effector``: eq. 15-17 at the tool (the paper applies them in the end-effector
   frame), collision from 4 s to 6 s.
