@@ -26,7 +26,7 @@ from pymodbus.pdu.register_message import (
     WriteMultipleRegistersResponse,
 )
 
-from hilrig.drivers.emulated.slots import Device, SlotLoop
+from hilrig.drivers.emulated.slots import Device, SlotLoop, accept_client
 from hilrig.drivers.joint_targets_frame import rtu_frame_size
 from hilrig.drivers.joint_targets_map import JointTargets, RegisterMap
 
@@ -101,12 +101,9 @@ class EmulatedModbusServer(Device):
     # -- the loop's thread -------------------------------------------------------------------
 
     def _accept(self) -> None:
-        try:
-            sock, _ = self._listener.accept()
-        except BlockingIOError:
+        sock = accept_client(self._listener)
+        if sock is None:
             return
-        sock.setblocking(False)
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         fd = sock.fileno()
         self._clients[fd] = _Client(sock)
         assert self._loop is not None

@@ -18,7 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from hilrig.drivers.emulated.outbox import Outbox
-from hilrig.drivers.emulated.slots import Device, SlotLoop
+from hilrig.drivers.emulated.slots import Device, SlotLoop, accept_client
 from hilrig.drivers.robot_state_codec import RobotState, encode
 
 MAX_BACKLOG_BYTES = 64 * 1024  # per client: beyond this, frames are dropped for that client
@@ -159,12 +159,9 @@ class EmulatedRobotStateServer(Device):
         self._require_loop().unwatch(self._listener.fileno())
 
     def _accept(self) -> None:
-        try:
-            sock, _ = self._listener.accept()
-        except BlockingIOError:
+        sock = accept_client(self._listener)
+        if sock is None:
             return
-        sock.setblocking(False)
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         fd = sock.fileno()
         self._clients[fd] = _Client(sock)
         self._accepted += 1

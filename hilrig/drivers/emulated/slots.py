@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import os
 import select
+import socket
 import threading
 import time
 from collections.abc import Callable
@@ -106,6 +107,18 @@ class SlotLoop:
             if handler is not None:
                 handler()
         return now
+
+
+def accept_client(listener: socket.socket) -> socket.socket | None:
+    """The next client waiting on the non-blocking ``listener``, set non-blocking with
+    TCP_NODELAY; None when none waits."""
+    try:
+        sock, _ = listener.accept()
+    except BlockingIOError:
+        return None
+    sock.setblocking(False)
+    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    return sock
 
 
 def _raise_priority() -> tuple[int, os.sched_param] | None:
