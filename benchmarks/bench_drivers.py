@@ -28,8 +28,8 @@ import numpy as np
 from benchmarks.harness import Result, quantiles_us
 from hilrig.drivers import FramerConfig, FtSerial, GravityCompensator, KunweiFramer, ToolLoad
 from hilrig.drivers.emulated import EmulatorConfig, FtEmulator
-from hilrig.drivers.ft_sensor import encode_frame
-from hilrig.drivers.joint_targets import JointTargetsWriter, ModbusEndpoint
+from hilrig.drivers.ft.wire import encode_frame
+from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
 from hilrig.robot import RobotModel
 
 RATE_HZ = 1000.0

@@ -14,10 +14,10 @@ import select
 import time
 from dataclasses import dataclass
 
-from hilrig.drivers.ft_sensor import FtSample
-from hilrig.drivers.ft_serial import FtSerial
-from hilrig.drivers.joint_targets import JointTargetsWriter
-from hilrig.drivers.robot_state import RobotStateClient
+from hilrig.drivers.ft.link import FtSerial
+from hilrig.drivers.ft.wire import FtSample
+from hilrig.drivers.joint_targets.link import JointTargetsWriter
+from hilrig.drivers.robot_state.link import RobotStateClient
 from hilrig.rig.recorder_feed import RecorderFeed
 
 

@@ -34,8 +34,8 @@ import numpy as np
 
 from hilrig.control import AdmittanceController, Law, combine, make, resolve_params
 from hilrig.control.controller import ParamsLike
-from hilrig.drivers.gravity import GravityCompensator
-from hilrig.drivers.joint_targets_map import Mode
+from hilrig.drivers.ft.gravity import GravityCompensator
+from hilrig.drivers.joint_targets.wire import Mode
 from hilrig.errors import HilrigError
 from hilrig.recording.samples import EventRecord
 from hilrig.rig.device_io import DeviceIO

@@ -32,7 +32,7 @@ from hilrig.control import (
     run_compiled,
 )
 from hilrig.drivers.emulated.rig import HOME_Q_RAD
-from hilrig.drivers.gravity import GravityCompensator
+from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.rig.clamp_kernels import HOLDING, NON_FINITE, candidate, exceeds, finish
 from hilrig.rig.records import AXES, JOINTS, TICK_DTYPE
 from hilrig.rig.rings import Ring, RingSpec

@@ -3,8 +3,8 @@
 import numpy as np
 
 from hilrig.drivers.emulated.plant import JointServoPlant
-from hilrig.drivers.joint_targets_map import JointTargets, Mode
-from hilrig.drivers.robot_state_codec import RobotStatus
+from hilrig.drivers.joint_targets.wire import JointTargets, Mode
+from hilrig.drivers.robot_state.wire import RobotStatus
 from hilrig.robot.limits import JointLimits
 
 LIMITS = JointLimits(

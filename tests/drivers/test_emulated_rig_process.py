@@ -15,8 +15,8 @@ from pymodbus.constants import ExcCodes
 
 from hilrig.drivers.emulated.probe import RigProbe
 from hilrig.drivers.emulated.rig import HOME_Q_RAD, RigEndpoints
-from hilrig.drivers.ft_sensor import FtSample
-from hilrig.drivers.robot_state_codec import RobotState
+from hilrig.drivers.ft.wire import FtSample
+from hilrig.drivers.robot_state.wire import RobotState
 from hilrig.rig.rig_process import RigCounters, RigProcess
 
 DEADLINE_S = 30.0

@@ -18,7 +18,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hilrig.drivers.ft_sensor import (
+from hilrig.drivers.ft.wire import (
     FRAME_BYTES,
     HEADER,
     KGF_N,

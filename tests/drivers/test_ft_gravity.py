@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from hilrig.drivers.gravity import GravityCompensator, ToolLoad, gravity_wrench, identify_tool_load
+from hilrig.drivers.ft.gravity import (
+    GravityCompensator,
+    ToolLoad,
+    gravity_wrench,
+    identify_tool_load,
+)
 from hilrig.errors import ParameterError
 
 LOAD = ToolLoad(1.25, (0.01, -0.02, 0.08))

@@ -22,7 +22,7 @@ from waiting import wait_until
 
 from hilrig.drivers import FtSample, FtSerial, GravityCompensator, ToolLoad
 from hilrig.drivers.emulated import EmulatorConfig, FtEmulator
-from hilrig.drivers.ft_sensor import START_COMMAND
+from hilrig.drivers.ft.wire import START_COMMAND
 from hilrig.errors import LinkError
 
 WRENCH = (1.5, -2.0, 10.0, 0.25, -0.125, 0.05)

@@ -4,8 +4,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hilrig.drivers.joint_targets_frame import RequestFrame, _pymodbus_frame
-from hilrig.drivers.joint_targets_map import JointTargets, Mode, RegisterMap
+from hilrig.drivers.joint_targets.frame import RequestFrame, _pymodbus_frame
+from hilrig.drivers.joint_targets.wire import JointTargets, Mode, RegisterMap
 
 angles = st.floats(-7.0, 7.0, allow_nan=False)  # any finite joint angle a clamp can command
 

@@ -26,8 +26,8 @@ from pymodbus.pdu.register_message import (
 )
 
 from hilrig.drivers.emulated.modbus_server import EmulatedModbusServer
-from hilrig.drivers.joint_targets import JointTargetsWriter, ModbusEndpoint
-from hilrig.drivers.joint_targets_map import JointTargets, Mode, RegisterMap
+from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
+from hilrig.drivers.joint_targets.wire import JointTargets, Mode, RegisterMap
 from hilrig.errors import LinkError, ModbusExceptionError, ParameterError
 
 MAP = RegisterMap()

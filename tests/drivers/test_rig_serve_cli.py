@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from hilrig.drivers.robot_state_codec import RobotStateDecoder
+from hilrig.drivers.robot_state.wire import RobotStateDecoder
 
 
 def test_rig_serve_prints_endpoints_that_work_and_stops_cleanly(tmp_path: Path) -> None:

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hilrig.drivers.robot_state_codec import (
+from hilrig.drivers.robot_state.wire import (
     FRAME_BYTES,
     MAGIC,
     RobotState,

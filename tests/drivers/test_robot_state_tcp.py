@@ -11,8 +11,8 @@ import time
 from polling import poll_for, poll_until
 
 from hilrig.drivers.emulated.robot_state_server import EmulatedRobotStateServer
-from hilrig.drivers.robot_state import ReceivedState, RobotStateClient
-from hilrig.drivers.robot_state_codec import MAGIC, RobotState, RobotStatus, encode
+from hilrig.drivers.robot_state.link import ReceivedState, RobotStateClient
+from hilrig.drivers.robot_state.wire import MAGIC, RobotState, RobotStatus, encode
 from hilrig.errors import LinkError
 
 

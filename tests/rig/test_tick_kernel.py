@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from numpy.typing import NDArray
 
 from hilrig.drivers.emulated.rig import HOME_Q_RAD
-from hilrig.drivers.gravity import GravityCompensator, ToolLoad
+from hilrig.drivers.ft.gravity import GravityCompensator, ToolLoad
 from hilrig.recording import load
 from hilrig.rig.clamp_kernels import HOLDING
 from hilrig.rig.loop import LoopConfig

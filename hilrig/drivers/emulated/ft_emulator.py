@@ -42,8 +42,8 @@ from numpy.typing import NDArray
 
 from hilrig.drivers.emulated.outbox import Outbox
 from hilrig.drivers.emulated.slots import Device, SlotLoop
-from hilrig.drivers.ft_sensor import FRAME, HEADER, KGF_N, START_COMMAND, STOP_COMMAND, TAIL
-from hilrig.drivers.gravity import STANDARD_GRAVITY_IN_BASE, ToolLoad
+from hilrig.drivers.ft.gravity import STANDARD_GRAVITY_IN_BASE, ToolLoad
+from hilrig.drivers.ft.wire import FRAME, HEADER, KGF_N, START_COMMAND, STOP_COMMAND, TAIL
 
 Source = Callable[[float], Sequence[float]]
 Orientation = Callable[[float], NDArray[np.float64]]

@@ -15,8 +15,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from hilrig.drivers.joint_targets_map import JOINTS, JointTargets, Mode
-from hilrig.drivers.robot_state_codec import RobotState, RobotStatus
+from hilrig.drivers.joint_targets.wire import JOINTS, JointTargets, Mode
+from hilrig.drivers.robot_state.wire import RobotState, RobotStatus
 from hilrig.robot.limits import JointLimits
 
 MAX_SUBSTEPS = 200  # per advance: at most 0.1 s at the default substep, no catch-up bursts

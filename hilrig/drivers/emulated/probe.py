@@ -18,9 +18,9 @@ from pymodbus.client import ModbusTcpClient
 from pymodbus.pdu import ModbusPDU
 
 from hilrig.drivers.emulated.rig import RigEndpoints
-from hilrig.drivers.ft_sensor import START_COMMAND, STOP_COMMAND, FtSample, KunweiFramer
-from hilrig.drivers.joint_targets_map import JointTargets, Mode, RegisterMap
-from hilrig.drivers.robot_state_codec import RobotState, RobotStateDecoder
+from hilrig.drivers.ft.wire import START_COMMAND, STOP_COMMAND, FtSample, KunweiFramer
+from hilrig.drivers.joint_targets.wire import JointTargets, Mode, RegisterMap
+from hilrig.drivers.robot_state.wire import RobotState, RobotStateDecoder
 
 BAUD = 460800
 

@@ -35,9 +35,9 @@ from hilrig.drivers.emulated.plant import JointServoPlant
 from hilrig.drivers.emulated.robot_state_server import EmulatedRobotStateServer
 from hilrig.drivers.emulated.scenarios import Scenario, scenario
 from hilrig.drivers.emulated.slots import SlotLoop
-from hilrig.drivers.gravity import ToolLoad
-from hilrig.drivers.joint_targets_map import JointTargets
-from hilrig.drivers.robot_state_codec import RobotState
+from hilrig.drivers.ft.gravity import ToolLoad
+from hilrig.drivers.joint_targets.wire import JointTargets
+from hilrig.drivers.robot_state.wire import RobotState
 from hilrig.robot import RobotModel
 
 _NOISE_BLOCK = 1024

@@ -1,12 +1,12 @@
 """The robot's joint-state TCP stream, emulated: one frame per slot to every client.
 
-Binds 127.0.0.1 with an OS-chosen port unless told otherwise. A device of a :class:`SlotLoop`
-(or alone with ``start()``/``stop()``): the loop accepts clients as they connect, and each
-``tick`` sends ``source(sequence)`` as a robot_state_codec frame to every client (the sequence
+Binds 127.0.0.1 with an OS-chosen port unless told otherwise. A device of a :class:`SlotLoop` (or
+alone with ``start()``/``stop()``): the loop accepts clients as they connect, and each ``tick``
+sends ``source(sequence)`` as a wire frame (robot_state/wire.py) to every client (the sequence
 counts slots, so a stall or a skipped slot shows as a gap). A client too slow to take its bytes
-loses whole frames (counted), never half of one; a frame counts as sent once the kernel has all
-of it. Faults, from any thread, applied at the next slot: ``drop_links(down_s)`` closes every
-client socket, ``stall(s)`` stops sending, ``inject(bytes)`` sends garbage between frames.
+loses whole frames (counted), never half of one; a frame counts as sent once the kernel has all of
+it. Faults, from any thread, applied at the next slot: ``drop_links(down_s)`` closes every client
+socket, ``stall(s)`` stops sending, ``inject(bytes)`` sends garbage between frames.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from hilrig.drivers.emulated.outbox import Outbox
 from hilrig.drivers.emulated.slots import Device, SlotLoop, accept_client
-from hilrig.drivers.robot_state_codec import RobotState, encode
+from hilrig.drivers.robot_state.wire import RobotState, encode
 
 MAX_BACKLOG_BYTES = 64 * 1024  # per client: beyond this, frames are dropped for that client
 CLOSE_FLUSH_S = 0.5  # at close, how long a client's unsent frames may take to leave

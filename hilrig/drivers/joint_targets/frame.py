@@ -18,7 +18,7 @@ from pymodbus.framer import FramerRTU
 from pymodbus.pdu import DecodePDU
 from pymodbus.pdu.register_message import WriteMultipleRegistersRequest
 
-from hilrig.drivers.joint_targets_map import JOINTS, JointTargets, Mode, RegisterMap
+from hilrig.drivers.joint_targets.wire import JOINTS, JointTargets, Mode, RegisterMap
 
 _DATA_AT = 7  # device id, function, address (2), count (2), byte count (1)
 _CRC_TABLE = np.array(FramerRTU.crc16_table, dtype=np.uint16)

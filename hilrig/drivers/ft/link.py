@@ -3,7 +3,7 @@
 ``connect()`` opens the port (460800 8N1 by default), sends the start command and waits for the
 first frame (blocking, not for the real-time loop). Then the loop selects on ``fileno()`` and
 calls ``poll(now_ns)``: one non-blocking read of everything waiting, framed by
-:class:`~hilrig.drivers.ft_sensor.KunweiFramer`, returned as new samples stamped ``now_ns``
+:class:`~hilrig.drivers.ft.wire.KunweiFramer`, returned as new samples stamped ``now_ns``
 (those read while connecting come first in the first poll). ``poll`` never raises: an error is
 counted and kept in ``status().last_error``, the port closed and reopened with backoff (and the
 start command sent again); after a silence of ``restart_after_s`` the start command is re-sent
@@ -22,7 +22,7 @@ import serial
 from numpy.typing import NDArray
 
 from hilrig.drivers.base import LinkStatus, RateMeter, Reader, error_text, wait_readable
-from hilrig.drivers.ft_sensor import (
+from hilrig.drivers.ft.wire import (
     START_COMMAND,
     STOP_COMMAND,
     FramerConfig,

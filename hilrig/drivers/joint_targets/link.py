@@ -1,6 +1,6 @@
 """Joint targets to the robot over Modbus RTU (function 16), sent from the caller's loop.
 
-``write(q_rad)`` never blocks: it encodes the register map (joint_targets_map.py) with a fresh
+``write(q_rad)`` never blocks: it encodes the register map (joint_targets/wire.py) with a fresh
 watchdog counter and sends the request at once if fewer than ``max_in_flight`` requests await
 replies; otherwise the targets wait as the pending latest value (a newer write supersedes them,
 counted: the robot should only ever get the newest) and leave from ``poll`` as soon as a reply
@@ -10,7 +10,7 @@ and timeouts (no reply within the endpoint's ``timeout_s``: the link is dropped 
 with backoff) are counted. Nothing raises: the last error is kept in ``last_error``. No thread.
 
 Frames are pymodbus's: a request is pymodbus's template filled in place by a compiled kernel
-(:class:`~hilrig.drivers.joint_targets_frame.RequestFrame`, checked byte for byte against
+(:class:`~hilrig.drivers.joint_targets.frame.RequestFrame`, checked byte for byte against
 pymodbus; pymodbus per request costs tens of us here); the acknowledgement, the same 8 bytes for
 every write of a register map, is built once by pymodbus and compared byte for byte; any other
 reply is cut by pymodbus's sizing and decoded by pymodbus (``FramerRTU.handleFrame``).
@@ -35,8 +35,8 @@ from pymodbus.pdu import DecodePDU, ModbusPDU
 from pymodbus.pdu.register_message import WriteMultipleRegistersResponse
 
 from hilrig.drivers.base import LinkStatus, Writer, error_text, wait_readable
-from hilrig.drivers.joint_targets_frame import RequestFrame, rtu_frame_size
-from hilrig.drivers.joint_targets_map import JOINTS, Mode, RegisterMap
+from hilrig.drivers.joint_targets.frame import RequestFrame, rtu_frame_size
+from hilrig.drivers.joint_targets.wire import JOINTS, Mode, RegisterMap
 from hilrig.drivers.reconnect import Backoff, start_tcp_connect, tcp_connected
 from hilrig.errors import LinkError, ModbusExceptionError, ParameterError, ProtocolError
 

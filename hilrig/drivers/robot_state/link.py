@@ -21,7 +21,7 @@ from typing import Protocol
 
 from hilrig.drivers.base import LinkStatus, RateMeter, Reader, error_text, wait_readable
 from hilrig.drivers.reconnect import Backoff, start_tcp_connect, tcp_connected
-from hilrig.drivers.robot_state_codec import DecoderStats, RobotState, RobotStateDecoder
+from hilrig.drivers.robot_state.wire import DecoderStats, RobotState, RobotStateDecoder
 from hilrig.errors import LinkError
 
 RECV_BYTES = 65536  # per recv: 385 frames, far more than arrive between two 1 kHz ticks
