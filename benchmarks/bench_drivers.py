@@ -27,9 +27,9 @@ import numpy as np
 
 from benchmarks.harness import Result, quantiles_us
 from hilrig.drivers import FramerConfig, FtSerial, GravityCompensator, KunweiFramer, ToolLoad
-from hilrig.drivers.emulated import EmulatorConfig, FtEmulator
 from hilrig.drivers.ft.wire import encode_frame
 from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
+from hilrig.emulator import EmulatorConfig, FtEmulator
 from hilrig.robot import RobotModel
 
 RATE_HZ = 1000.0

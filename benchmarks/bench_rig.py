@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.harness import Result, quantiles_us
-from hilrig.drivers.emulated.probe import RigProbe
-from hilrig.drivers.emulated.rig import HOME_Q_RAD
+from hilrig.emulator.probe import RigProbe
+from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.rig.rig_process import RigProcess
 
 DURATION_S = 10.0

@@ -26,7 +26,7 @@ import numpy as np
 from benchmarks.bench_replay import LAWS, RATE_HZ, inputs  # the same input and controllers
 from benchmarks.harness import Result
 from hilrig import replay as api
-from hilrig.drivers.emulated.rig import HOME_Q_RAD
+from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.recording import (
     ControllerSample,
     EventKind,

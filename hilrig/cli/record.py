@@ -15,8 +15,8 @@ from rich.text import Text
 
 from hilrig.cli.app import app
 from hilrig.control import Law
-from hilrig.drivers.emulated.rig import RigEndpoints
-from hilrig.drivers.emulated.scenarios import SCENARIOS
+from hilrig.emulator.rig import RigEndpoints
+from hilrig.emulator.scenarios import SCENARIOS
 from hilrig.errors import HilrigError
 from hilrig.recording.samples import EventRecord
 from hilrig.rig import (

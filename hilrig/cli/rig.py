@@ -8,8 +8,8 @@ import typer
 from rich.console import Console
 
 from hilrig.cli.app import app
-from hilrig.drivers.emulated.rig import EmulatedRig, RigConfig
-from hilrig.drivers.emulated.scenarios import SCENARIOS, scenario
+from hilrig.emulator.rig import EmulatedRig, RigConfig
+from hilrig.emulator.scenarios import SCENARIOS, scenario
 
 rig_app = typer.Typer(help="The emulated rig (devices behind their real wire protocols).")
 app.add_typer(rig_app, name="rig")

@@ -4,13 +4,12 @@ can be fuzzed and replayed) and its link (``link``, the transport)::
     ft/             Kunwei wrist/base F/T sensor: wire, link (serial), gravity (tool load)
     robot_state/    the robot's joint-state stream: wire (HRS1 frames), link (TCP client)
     joint_targets/  joint targets: wire (Modbus register map), frame (RTU request), link
-    emulated/       the emulated rig: the same bytes over a pty and loopback sockets
 
-Every link follows :mod:`hilrig.drivers.base`: ``connect()``/``close()`` (or ``with``), no
-thread of its own: the caller's loop selects on ``fileno()`` and calls the non-blocking
-``poll(now_ns)``; lost links reopen with :class:`~hilrig.drivers.reconnect.Backoff`; health is a
-:class:`~hilrig.drivers.base.LinkStatus`. The public names below load on first use (pyserial,
-pymodbus and numba come with some of them).
+Every link follows :mod:`hilrig.drivers.base`: ``connect()``/``close()`` (or ``with``), no thread of
+its own: the caller's loop selects on ``fileno()`` and calls the non-blocking ``poll(now_ns)``; the
+emulated rig (:mod:`hilrig.emulator`) speaks the same bytes; lost links reopen with
+:class:`~hilrig.drivers.reconnect.Backoff`; health is a :class:`~hilrig.drivers.base.LinkStatus`.
+The public names below load on first use (pyserial, pymodbus and numba come with some of them).
 """
 
 from __future__ import annotations

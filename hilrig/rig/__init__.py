@@ -28,7 +28,6 @@ if TYPE_CHECKING:
     from hilrig.rig.rings import Rows
     from hilrig.rig.safety import SafetyClamp, SafetyConfig
     from hilrig.rig.session import RigKind, SessionConfig, SessionResult, record_session
-    from hilrig.rig.timing import LatencyHistogram
     from hilrig.rig.trajectory import Trajectory, make_trajectory
     from hilrig.rig.view_feed import VIEW_RATE_HZ, ViewBatch, ViewCounts, ViewForwarder
     from hilrig.rig.virtual import VirtualInput
@@ -44,7 +43,6 @@ _MODULES = {
     "rings": ("Rows",),
     "safety": ("SafetyClamp", "SafetyConfig"),
     "session": ("RigKind", "SessionConfig", "SessionResult", "record_session"),
-    "timing": ("LatencyHistogram",),
     "trajectory": ("Trajectory", "make_trajectory"),
     "view_feed": ("VIEW_RATE_HZ", "ViewBatch", "ViewCounts", "ViewForwarder"),
     "virtual": ("VirtualInput",),
@@ -63,7 +61,6 @@ __all__ = [
     "VIEW_RATE_HZ",
     "ChildProcess",
     "ControlLoop",
-    "LatencyHistogram",
     "LiveReportLike",
     "LiveViewPort",
     "LoopConfig",

@@ -52,10 +52,10 @@ from hilrig.rig.tick import (
     CompiledTick,
     fill_tick_row,
 )
-from hilrig.rig.timing import LatencyHistogram, realtime_python
 from hilrig.rig.trajectory import Trajectory
 from hilrig.rig.virtual import VirtualInput
 from hilrig.robot import RobotModel
+from hilrig.timing import LatencyHistogram, realtime_python
 
 COMMAND_FAULT_HOLD_NS = 50_000_000  # after a failed joint-target write, hold this long
 WATCHDOG_TICKS = 100  # how often the session's watchdog (e.g. a living recorder) is asked

@@ -2,7 +2,7 @@
 
 ``RigProcess(scenario).start()`` spawns a process that opens an :class:`EmulatedRig` and
 returns its endpoints. The child runs the rig's one slot loop in its main thread (real-time
-priority where permitted, see :mod:`hilrig.drivers.emulated.slots`), with this pipe among the
+priority where permitted, see :mod:`hilrig.emulator.slots`), with this pipe among the
 descriptors it waits on: faults and counter requests are served between slots, no other thread.
 ``counters()`` returns what the rig has sent so far; ``stop()`` ends it and returns the final
 counts (after its devices closed), also kept in ``final_counters``. It runs on the spawn helper
@@ -17,7 +17,7 @@ import threading
 from multiprocessing.connection import Connection
 from typing import Any
 
-from hilrig.drivers.emulated.rig import EmulatedRig, RigConfig, RigCounters, RigEndpoints
+from hilrig.emulator.rig import EmulatedRig, RigConfig, RigCounters, RigEndpoints
 from hilrig.errors import HilrigError, LinkError
 from hilrig.rig.child import ChildProcess, report
 

@@ -33,12 +33,12 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from hilrig.drivers.emulated.rig import RigConfig, RigEndpoints
-from hilrig.drivers.emulated.scenarios import scenario as make_scenario
 from hilrig.drivers.ft.gravity import GravityCompensator, ToolLoad
 from hilrig.drivers.ft.link import FtSerial
 from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
 from hilrig.drivers.robot_state.link import ReceivedState, RobotStateClient
+from hilrig.emulator.rig import RigConfig, RigEndpoints
+from hilrig.emulator.scenarios import scenario as make_scenario
 from hilrig.errors import HilrigError, LinkError, RecordingError
 from hilrig.recording import Attachment, SessionInfo, validate_subject_id
 from hilrig.recording.samples import EventRecord

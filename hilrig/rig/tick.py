@@ -31,8 +31,8 @@ from hilrig.control import (
     preset,
     run_compiled,
 )
-from hilrig.drivers.emulated.rig import HOME_Q_RAD
 from hilrig.drivers.ft.gravity import GravityCompensator
+from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.rig.clamp_kernels import HOLDING, NON_FINITE, candidate, exceeds, finish
 from hilrig.rig.records import AXES, JOINTS, TICK_DTYPE
 from hilrig.rig.rings import Ring, RingSpec

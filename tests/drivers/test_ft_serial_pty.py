@@ -21,8 +21,8 @@ from polling import poll_for, poll_until
 from waiting import wait_until
 
 from hilrig.drivers import FtSample, FtSerial, GravityCompensator, ToolLoad
-from hilrig.drivers.emulated import EmulatorConfig, FtEmulator
 from hilrig.drivers.ft.wire import START_COMMAND
+from hilrig.emulator import EmulatorConfig, FtEmulator
 from hilrig.errors import LinkError
 
 WRENCH = (1.5, -2.0, 10.0, 0.25, -0.125, 0.05)
@@ -271,7 +271,7 @@ def test_emulator_runs_as_its_own_process(tmp_path: Path) -> None:
         [
             sys.executable,
             "-m",
-            "hilrig.drivers.emulated.ft_emulator",
+            "hilrig.emulator.ft_emulator",
             "--port-path",
             str(port_path),
         ],

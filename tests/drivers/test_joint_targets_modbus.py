@@ -25,9 +25,9 @@ from pymodbus.pdu.register_message import (
     WriteMultipleRegistersResponse,
 )
 
-from hilrig.drivers.emulated.modbus_server import EmulatedModbusServer
 from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
 from hilrig.drivers.joint_targets.wire import JointTargets, Mode, RegisterMap
+from hilrig.emulator.modbus_server import EmulatedModbusServer
 from hilrig.errors import LinkError, ModbusExceptionError, ParameterError
 
 MAP = RegisterMap()

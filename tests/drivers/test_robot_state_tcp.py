@@ -10,9 +10,9 @@ import time
 
 from polling import poll_for, poll_until
 
-from hilrig.drivers.emulated.robot_state_server import EmulatedRobotStateServer
 from hilrig.drivers.robot_state.link import ReceivedState, RobotStateClient
 from hilrig.drivers.robot_state.wire import MAGIC, RobotState, RobotStatus, encode
+from hilrig.emulator.robot_state_server import EmulatedRobotStateServer
 from hilrig.errors import LinkError
 
 

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.typing import NDArray
 
-from hilrig.drivers.emulated.rig import HOME_Q_RAD
+from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.errors import ParameterError
 from hilrig.rig import SafetyClamp, SafetyConfig
 from hilrig.rig.safety import Clamp, axis_reach_m

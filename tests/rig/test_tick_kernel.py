@@ -17,8 +17,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.typing import NDArray
 
-from hilrig.drivers.emulated.rig import HOME_Q_RAD
 from hilrig.drivers.ft.gravity import GravityCompensator, ToolLoad
+from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.recording import load
 from hilrig.rig.clamp_kernels import HOLDING
 from hilrig.rig.loop import LoopConfig

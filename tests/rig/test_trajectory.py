@@ -8,7 +8,7 @@ import pinocchio as pin
 import pytest
 from numpy.typing import NDArray
 
-from hilrig.drivers.emulated.rig import HOME_Q_RAD
+from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.errors import ParameterError
 from hilrig.rig import SafetyClamp, SafetyConfig, Trajectory, make_trajectory
 from hilrig.rig.trajectory import TRAJECTORIES, Circle, minimum_jerk, ramped_time_s

@@ -29,15 +29,15 @@ from pathlib import Path
 
 import numpy as np
 
-from hilrig.drivers.emulated.ft_emulator import EmulatorConfig, FtEmulator
-from hilrig.drivers.emulated.modbus_server import EmulatedModbusServer
-from hilrig.drivers.emulated.plant import JointServoPlant
-from hilrig.drivers.emulated.robot_state_server import EmulatedRobotStateServer
-from hilrig.drivers.emulated.scenarios import Scenario, scenario
-from hilrig.drivers.emulated.slots import SlotLoop
 from hilrig.drivers.ft.gravity import ToolLoad
 from hilrig.drivers.joint_targets.wire import JointTargets
 from hilrig.drivers.robot_state.wire import RobotState
+from hilrig.emulator.ft_emulator import EmulatorConfig, FtEmulator
+from hilrig.emulator.modbus_server import EmulatedModbusServer
+from hilrig.emulator.plant import JointServoPlant
+from hilrig.emulator.robot_state_server import EmulatedRobotStateServer
+from hilrig.emulator.scenarios import Scenario, scenario
+from hilrig.emulator.slots import SlotLoop
 from hilrig.robot import RobotModel
 
 _NOISE_BLOCK = 1024

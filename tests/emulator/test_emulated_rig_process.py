@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from pymodbus.constants import ExcCodes
 
-from hilrig.drivers.emulated.probe import RigProbe
-from hilrig.drivers.emulated.rig import HOME_Q_RAD, RigEndpoints
 from hilrig.drivers.ft.wire import FtSample
 from hilrig.drivers.robot_state.wire import RobotState
+from hilrig.emulator.probe import RigProbe
+from hilrig.emulator.rig import HOME_Q_RAD, RigEndpoints
 from hilrig.rig.rig_process import RigCounters, RigProcess
 
 DEADLINE_S = 30.0

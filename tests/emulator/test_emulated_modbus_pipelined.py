@@ -4,9 +4,9 @@ import socket
 
 import numpy as np
 
-from hilrig.drivers.emulated.modbus_server import EmulatedModbusServer
 from hilrig.drivers.joint_targets.frame import RequestFrame
 from hilrig.drivers.joint_targets.wire import JointTargets, Mode, RegisterMap
+from hilrig.emulator.modbus_server import EmulatedModbusServer
 
 ACK_BYTES = 8  # device, function 16, address (2), count (2), CRC (2)
 

@@ -4,12 +4,12 @@ import time
 
 import numpy as np
 
-from hilrig.drivers.emulated.probe import RigProbe
-from hilrig.drivers.emulated.rig import HOME_Q_RAD, EmulatedRig, RigConfig
-from hilrig.drivers.emulated.scenarios import HandContact, PaperBody, PaperEndEffector, scenario
 from hilrig.drivers.ft.gravity import gravity_wrench
 from hilrig.drivers.ft.wire import FtSample
 from hilrig.drivers.robot_state.wire import RobotState, RobotStatus
+from hilrig.emulator.probe import RigProbe
+from hilrig.emulator.rig import HOME_Q_RAD, EmulatedRig, RigConfig
+from hilrig.emulator.scenarios import HandContact, PaperBody, PaperEndEffector, scenario
 from hilrig.errors import HilrigError
 from hilrig.paper.profiles import end_effector_force, joint_torque
 from hilrig.robot import RobotModel

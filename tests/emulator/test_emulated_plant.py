@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from hilrig.drivers.emulated.plant import JointServoPlant
 from hilrig.drivers.joint_targets.wire import JointTargets, Mode
 from hilrig.drivers.robot_state.wire import RobotStatus
+from hilrig.emulator.plant import JointServoPlant
 from hilrig.robot.limits import JointLimits
 
 LIMITS = JointLimits(

@@ -26,9 +26,9 @@ from pymodbus.pdu.register_message import (
     WriteMultipleRegistersResponse,
 )
 
-from hilrig.drivers.emulated.slots import Device, SlotLoop, accept_client
 from hilrig.drivers.joint_targets.frame import rtu_frame_size
 from hilrig.drivers.joint_targets.wire import JointTargets, RegisterMap
+from hilrig.emulator.slots import Device, SlotLoop, accept_client
 
 MAX_REQUEST_BYTES = 1024  # unframed bytes beyond which a client's input is discarded
 MAX_REGISTERS = 0x7B  # the most function 16 may write (Modbus spec)

@@ -26,7 +26,7 @@ import time
 from collections.abc import Callable
 from typing import Self
 
-from hilrig.rig.timing import LatencyHistogram, tighten_timer_slack
+from hilrig.timing import LatencyHistogram, tighten_timer_slack
 
 RIG_PRIORITY = 40
 MAX_BEHIND = 5

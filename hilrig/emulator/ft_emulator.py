@@ -7,7 +7,7 @@ streams only after the start command ``48 AA 0D 0A`` and stops on ``43 AA 0D 0A`
 It is a device of a :class:`SlotLoop`: ``attach(loop)`` makes the pty and has the loop read
 commands as they arrive; ``tick(slot_ns)`` sends that slot's frame. The emulated rig drives it
 in its one thread; ``start()``/``stop()`` (or ``with``) run it alone in a loop thread of its own,
-and ``python -m hilrig.drivers.emulated.ft_emulator --port-path /tmp/ft`` as its own process.
+and ``python -m hilrig.emulator.ft_emulator --port-path /tmp/ft`` as its own process.
 
 Each frame carries ``source(t_s)`` (the external wrench on the sensor, N and N*m, ``t_s`` the
 frame's slot time in s since the loop started) plus bias, Gaussian noise and the tool's gravity
@@ -40,10 +40,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from hilrig.drivers.emulated.outbox import Outbox
-from hilrig.drivers.emulated.slots import Device, SlotLoop
 from hilrig.drivers.ft.gravity import STANDARD_GRAVITY_IN_BASE, ToolLoad
 from hilrig.drivers.ft.wire import FRAME, HEADER, KGF_N, START_COMMAND, STOP_COMMAND, TAIL
+from hilrig.emulator.outbox import Outbox
+from hilrig.emulator.slots import Device, SlotLoop
 
 Source = Callable[[float], Sequence[float]]
 Orientation = Callable[[float], NDArray[np.float64]]

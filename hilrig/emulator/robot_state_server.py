@@ -17,9 +17,9 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from hilrig.drivers.emulated.outbox import Outbox
-from hilrig.drivers.emulated.slots import Device, SlotLoop, accept_client
 from hilrig.drivers.robot_state.wire import RobotState, encode
+from hilrig.emulator.outbox import Outbox
+from hilrig.emulator.slots import Device, SlotLoop, accept_client
 
 MAX_BACKLOG_BYTES = 64 * 1024  # per client: beyond this, frames are dropped for that client
 CLOSE_FLUSH_S = 0.5  # at close, how long a client's unsent frames may take to leave

@@ -17,10 +17,10 @@ from pymodbus import FramerType
 from pymodbus.client import ModbusTcpClient
 from pymodbus.pdu import ModbusPDU
 
-from hilrig.drivers.emulated.rig import RigEndpoints
 from hilrig.drivers.ft.wire import START_COMMAND, STOP_COMMAND, FtSample, KunweiFramer
 from hilrig.drivers.joint_targets.wire import JointTargets, Mode, RegisterMap
 from hilrig.drivers.robot_state.wire import RobotState, RobotStateDecoder
+from hilrig.emulator.rig import RigEndpoints
 
 BAUD = 460800
 
