@@ -1,0 +1,127 @@
+"""The viewer-feed process of the live view: spawned by :class:`~hilrig.viz.live.LiveView`,
+niced, it takes the recorder's batches off the bounded queue and logs them with
+:class:`~hilrig.viz.live_logger.LiveLogger` until the end marker or its parent's death. A
+viewer that cannot be reached, or stops taking data, is said once; the feed then ends and the
+session goes on recording everything.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import queue
+import socket
+import sys
+import time
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from multiprocessing.queues import Queue
+from typing import NoReturn
+
+from hilrig.errors import ViewError
+from hilrig.rig import ViewBatch
+from hilrig.rig.child import report
+from hilrig.viz.live_logger import LiveLogger, open_live
+from hilrig.viz.sinks import Sink, SinkKind, grpc_address
+
+POLL_S = 0.2  # the feed checks on its parent this often while no batch comes
+CHECK_S = 1.0  # the stream's health (a flush) is checked this often
+FLUSH_TIMEOUT_S = 5.0
+CONNECT_TIMEOUT_S = 2.0
+NICENESS = 10
+
+
+@dataclass(frozen=True)
+class LiveJob:
+    """What the viewer-feed process needs, pickled into it when it is spawned."""
+
+    sink: Sink
+    session_id: str
+    controller: str
+    source: str
+    rate_hz: float
+    loop_rate_hz: float
+    urdf: str | None
+    queue: Queue[ViewBatch | None]
+    parent_pid: int
+
+
+def serve(conn: Connection, job: LiveJob) -> None:
+    """The viewer-feed process: open the stream, log every batch until the end marker or the
+    parent's death, finish the stream and report. A problem is said once and ends the feed."""
+    with contextlib.suppress(OSError):
+        os.nice(NICENESS)
+    try:
+        _reachable(job.sink)
+        live = open_live(
+            job.sink,
+            session_id=job.session_id,
+            controller=job.controller,
+            source=job.source,
+            rate_hz=job.rate_hz,
+            loop_rate_hz=job.loop_rate_hz,
+            urdf=job.urdf,
+        )
+    except Exception as err:  # a viewer problem, whatever it is, must not reach the session
+        report(conn, "ready")
+        _give_up(conn, 0, _reason(err))
+    report(conn, "ready")
+    problem = _feed(job, live)
+    if not problem:
+        try:
+            live.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+            live.rec.disconnect()
+        except Exception as err:
+            problem = f"the viewer did not take the last data: {_reason(err)}"
+    if problem:
+        _give_up(conn, live.batches, problem)
+    report(conn, "done", (live.batches, ""))
+
+
+def _feed(job: LiveJob, live: LiveLogger) -> str:
+    """Log batches until the end marker or the parent's death; the problem that stopped it
+    ("" if none)."""
+    next_check = time.monotonic() + CHECK_S
+    try:
+        while os.getppid() == job.parent_pid:
+            try:
+                batch = job.queue.get(timeout=POLL_S)
+            except queue.Empty:
+                pass
+            else:
+                if batch is None:
+                    return ""
+                live.log(batch)
+            if time.monotonic() >= next_check:  # raises if the viewer stopped taking data
+                live.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
+                next_check = time.monotonic() + CHECK_S
+    except Exception as err:  # a viewer problem, whatever it is, must not reach the session
+        return f"the viewer stopped taking data: {_reason(err)}"
+    return ""
+
+
+def _reachable(sink: Sink) -> None:
+    """Raises ViewError if nothing listens at a CONNECT sink's address (Rerun would retry it
+    for 5 s before sending anything)."""
+    if sink.kind is not SinkKind.CONNECT:
+        return
+    url = sink.url or ""
+    try:
+        socket.create_connection(grpc_address(url), timeout=CONNECT_TIMEOUT_S).close()
+    except OSError as err:
+        raise ViewError(f"no viewer at {url} ({err.strerror or err})") from err
+
+
+def _reason(err: BaseException) -> str:
+    return str(err) if isinstance(err, ViewError) else f"{type(err).__name__}: {err}"
+
+
+def _give_up(conn: Connection, shown: int, problem: str) -> NoReturn:
+    """Say ``problem`` once on stderr and to the session, then leave at once: Rerun would wait
+    up to 5 s more for a viewer that is not there."""
+    line = f"hilrig: live view: {problem}; the session goes on and records everything\n"
+    with contextlib.suppress(OSError, ValueError):
+        sys.stderr.write(("\r\033[K" if sys.stderr.isatty() else "") + line)
+        sys.stderr.flush()
+    report(conn, "done", (shown, problem))
+    os._exit(0)
