@@ -8,10 +8,11 @@ the loop (its devices' I/O and the compiled tick on one thread) here. Three 60 s
   process, which streams it to Rerun's own gRPC server, ``rerun --save``, on loopback);
 - while a busy process burns one of the two cores (a lab PC with a browser or viewer open).
 
-Reported for each: missed deadlines, tick lateness p50/p99/max, compute per tick p50/p99,
-sensor-to-command (F/T frame read -> Modbus request with its targets sent) and to the
-request's acknowledgement, recorder drops, hold ticks, fallback ticks, and the emulated rig's
-CPU (its process's CPU time over the session's wall time, from /proc).
+Reported for each: missed deadlines, tick lateness p50/p99/max, compute per tick p50/p99 (the tick:
+compiled tick, Modbus request sent, row written) and the I/O before it (the three links read, their
+rows stored), sensor-to-command (F/T frame read -> Modbus request with its targets sent) and to the
+request's acknowledgement, recorder drops, hold ticks, fallback ticks, and the emulated rig's CPU
+(its process's CPU time over the session's wall time, from /proc).
 """
 
 from __future__ import annotations
@@ -141,6 +142,7 @@ def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[
     s2c = summary.sensor_to_command.summary_us()
     s2a = summary.sensor_to_ack.summary_us()
     compute = summary.compute.summary_us()
+    io = summary.io.summary_us()
     missed_pct = 100 * summary.missed_deadlines / summary.ticks
     rig_p99 = (
         float("nan") if result.rig_counters is None else result.rig_counters.slot_lateness_us[1]
@@ -152,6 +154,7 @@ def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[
         "hold_ticks": summary.hold_ticks,
         "lateness_us": late,
         "compute_us": compute,
+        "io_us": io,
         "sensor_to_command_us": s2c,
         "sensor_to_ack_us": s2a,
         "messages_written": result.messages_written,
@@ -173,12 +176,16 @@ def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[
         row("lateness max", late["max"], "us"),
         row("compute per tick p50", compute["p50"], "us"),
         row("compute per tick p99", compute["p99"], "us", "<= 50", compute["p99"] <= 50),
+        row("I/O before a tick (three links read, rows stored) p50", io["p50"], "us"),
+        row("I/O before a tick p99", io["p99"], "us"),
         row("sensor-to-command p50", s2c["p50"], "us"),
         row("sensor-to-command p99", s2c["p99"], "us", "<= 500", s2c["p99"] <= 500),
         row("sensor-to-acknowledgement p99", s2a["p99"], "us"),
         row("recorder drops", result.drops, "rows", "== 0", result.drops == 0),
         row("hold ticks", summary.hold_ticks, "ticks", "== 0", summary.hold_ticks == 0),
         row("fallback ticks", summary.fallback_ticks, "ticks"),
+        row("of the missed: periods whose frame came with the next (sent or read late)",
+            summary.merged_frames, "periods"),
         row("emulated sensor's own send lateness p99 (rig slots)", rig_p99, "us"),
         row("emulated rig CPU", measured.rig_cpu_pct, "% of a core", "<= 25",
             measured.rig_cpu_pct <= 25),

@@ -116,7 +116,9 @@ class LoopStatus:
 class LoopSummary:
     """End-of-run numbers: tick counts, lateness and latency histograms.
 
-    ``sensor_to_command``: F/T frame read -> the Modbus request with the targets computed from
+    ``io``: reading the three links and storing their rows, before a tick; ``compute``: the tick
+    itself (compiled tick, Modbus request sent, tick row written). ``sensor_to_command``: F/T
+    frame read -> the Modbus request with the targets computed from
     it sent; ``sensor_to_ack``: the same frame -> that request acknowledged by the robot.
     """
 
@@ -126,6 +128,7 @@ class LoopSummary:
     merged_frames: int = 0  # frames read together with a newer one: no tick of their own
     hold_ticks: int = 0
     lateness: LatencyHistogram = field(default_factory=LatencyHistogram)
+    io: LatencyHistogram = field(default_factory=LatencyHistogram)
     compute: LatencyHistogram = field(default_factory=LatencyHistogram)
     sensor_to_command: LatencyHistogram = field(default_factory=LatencyHistogram)
     sensor_to_ack: LatencyHistogram = field(default_factory=LatencyHistogram)
@@ -224,6 +227,7 @@ class ControlLoop:
                     window_min = None
                 if end_ns is not None and nominal >= end_ns:
                     break
+                ticking = time.monotonic_ns()
                 self.tick(now, nominal)
                 if self._watchdog is not None and summary.ticks % WATCHDOG_TICKS == 0:
                     reason = self._watchdog()
@@ -232,7 +236,8 @@ class ControlLoop:
                         self._events.fault("session", f"{reason}: robot held, session ended", now)
                         break
                 done = time.monotonic_ns()
-                summary.compute.add(done - now)
+                summary.io.add(ticking - now)
+                summary.compute.add(done - ticking)
                 summary.lateness.add(lateness)
                 if done - nominal > period:
                     summary.missed_deadlines += 1
