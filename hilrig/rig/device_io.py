@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import select
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from hilrig.drivers.ft.link import FtSerial
@@ -40,6 +41,19 @@ class DeviceIO:
             fd = self.sensor.fileno()
             select.select([fd] if fd >= 0 else [], [], [], timeout_ns / 1e9)
         return time.monotonic_ns()
+
+    def pump_until(
+        self, done: Callable[[list[FtSample]], bool], give_up_ns: int, *, step_ns: int = 10_000_000
+    ) -> bool:
+        """Outside the loop: wait and read (every sample to the rings) until ``done(the wrist
+        samples just read)`` is true, or ``give_up_ns`` passes (then False). ``done`` is asked
+        at least every ``step_ns`` (the sensor may be silent)."""
+        while True:
+            now = self.wait(min(give_up_ns, time.monotonic_ns() + step_ns))
+            if done(self.pump(now)):
+                return True
+            if now >= give_up_ns:
+                return False
 
     def pump(self, now_ns: int) -> list[FtSample]:
         """Read every device without blocking and hand each sample to the recorder's rings;

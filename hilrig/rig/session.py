@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 
 from hilrig.drivers.ft.gravity import GravityCompensator, ToolLoad
 from hilrig.drivers.ft.link import FtSerial
+from hilrig.drivers.ft.wire import FtSample
 from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
 from hilrig.drivers.robot_state.link import ReceivedState, RobotStateClient
 from hilrig.emulator.rig import RigConfig, RigEndpoints
@@ -278,14 +279,12 @@ def _connect(stack: ExitStack, endpoints: RigEndpoints, feed: RecorderFeed) -> D
 
 def _wait_for_robot(devices: DeviceIO) -> ReceivedState:
     """Read (and record) until the robot's first joint state and the sensor's first frame."""
-    deadline = time.monotonic_ns() + round(FIRST_SAMPLE_TIMEOUT_S * 1e9)
-    while devices.robot.latest() is None or devices.sensor.latest() is None:
-        now = devices.wait(min(deadline, time.monotonic_ns() + 10_000_000))
-        devices.pump(now)
-        if now >= deadline:
-            missing = "robot joint state" if devices.robot.latest() is None else "wrist F/T sensor"
-            raise LinkError(f"{missing}: no valid frame within {FIRST_SAMPLE_TIMEOUT_S} s")
-    latest = devices.robot.latest()
+    give_up = time.monotonic_ns() + round(FIRST_SAMPLE_TIMEOUT_S * 1e9)
+    robot, sensor = devices.robot, devices.sensor
+    if not devices.pump_until(lambda _: None not in (robot.latest(), sensor.latest()), give_up):
+        missing = "robot joint state" if robot.latest() is None else "wrist F/T sensor"
+        raise LinkError(f"{missing}: no valid frame within {FIRST_SAMPLE_TIMEOUT_S} s")
+    latest = robot.latest()
     assert latest is not None
     return latest
 
@@ -294,12 +293,13 @@ def _average_wrench(devices: DeviceIO, duration_s: float) -> NDArray[np.float64]
     """The mean raw wrist wrench over ``duration_s`` of samples (all recorded): the tare."""
     samples: list[tuple[float, ...]] = []
     end = time.monotonic_ns() + round(duration_s * 1e9)
-    now = time.monotonic_ns()
-    while now < end or not samples:
-        now = devices.wait(end)
-        samples.extend(s.wrench_in_sensor for s in devices.pump(now))
-        if now >= end + round(FIRST_SAMPLE_TIMEOUT_S * 1e9):
-            raise LinkError("wrist F/T sensor: no samples to tare")
+
+    def enough(new: list[FtSample]) -> bool:
+        samples.extend(s.wrench_in_sensor for s in new)
+        return bool(samples) and time.monotonic_ns() >= end
+
+    if not devices.pump_until(enough, end + round(FIRST_SAMPLE_TIMEOUT_S * 1e9)):
+        raise LinkError("wrist F/T sensor: no samples to tare")
     mean: NDArray[np.float64] = np.mean(np.asarray(samples, dtype=np.float64), axis=0)
     return mean
 
@@ -316,23 +316,22 @@ def _read_to_the_end(devices: DeviceIO, rig: RigProcess | None) -> None:
 
 def _read_until_quiet(devices: DeviceIO) -> None:
     """Read (and record) until no data came for QUIET_S, or MAX_DRAIN_S passed."""
-    now = time.monotonic_ns()
-    end = now + round(MAX_DRAIN_S * 1e9)
-    quiet_until = now + round(QUIET_S * 1e9)
-    while now < min(quiet_until, end):
-        now = devices.wait(min(quiet_until, end))
-        before = devices.samples_read
-        devices.pump(now)
-        if devices.samples_read != before:
-            quiet_until = now + round(QUIET_S * 1e9)
+    quiet_ns = round(QUIET_S * 1e9)
+    last = [devices.samples_read, time.monotonic_ns()]  # samples read, when that count changed
+
+    def quiet(_: list[FtSample]) -> bool:
+        now = time.monotonic_ns()
+        if devices.samples_read != last[0]:
+            last[:] = [devices.samples_read, now]
+        return now - last[1] >= quiet_ns
+
+    devices.pump_until(quiet, time.monotonic_ns() + round(MAX_DRAIN_S * 1e9), step_ns=quiet_ns)
 
 
 def _wait_for_recorder(devices: DeviceIO, recorder: RecorderProcess) -> None:
     """Keep reading (and queueing) samples until the recorder has its file open."""
-    deadline = time.monotonic() + RECORDER_READY_TIMEOUT_S
-    while not recorder.ready():
-        devices.pump(devices.wait(time.monotonic_ns() + 5_000_000))
-        if time.monotonic() > deadline:
-            raise RecordingError(
-                f"recorder of {recorder.path}: not ready within {RECORDER_READY_TIMEOUT_S} s"
-            )
+    give_up = time.monotonic_ns() + round(RECORDER_READY_TIMEOUT_S * 1e9)
+    if not devices.pump_until(lambda _: recorder.ready(), give_up, step_ns=5_000_000):
+        raise RecordingError(
+            f"recorder of {recorder.path}: not ready within {RECORDER_READY_TIMEOUT_S} s"
+        )
