@@ -27,7 +27,6 @@ import time
 from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field, replace
-from enum import StrEnum
 from pathlib import Path
 
 import numpy as np
@@ -44,6 +43,7 @@ from hilrig.errors import HilrigError, LinkError, RecordingError
 from hilrig.recording import Attachment, SessionInfo, validate_subject_id
 from hilrig.recording.samples import EventRecord
 from hilrig.rig.device_io import DeviceIO
+from hilrig.rig.kinds import RigKind
 from hilrig.rig.live_port import LiveReportLike, LiveViewPort
 from hilrig.rig.loop import ControlLoop, LoopConfig, LoopSummary
 from hilrig.rig.recorder_feed import RecorderFeed
@@ -62,13 +62,6 @@ FIRST_SAMPLE_TIMEOUT_S = 5.0
 RECORDER_READY_TIMEOUT_S = 60.0
 QUIET_S = 0.05  # at a session's end: a link silent this long has delivered all it sent
 MAX_DRAIN_S = 2.0
-
-
-class RigKind(StrEnum):
-    """Which rig a session runs on: the emulated one (started here) or a real AUBO."""
-
-    EMULATED = "emulated"
-    AUBO = "aubo"
 
 
 @dataclass(frozen=True)
