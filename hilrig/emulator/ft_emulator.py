@@ -1,7 +1,9 @@
 """The Kunwei F/T sensor, emulated on a pseudo-terminal: byte-exact frames, one per slot.
 
 The emulator owns a pty pair in raw mode and keeps a symlink to its slave at ``port_path``; a
-driver opens that path with pyserial as it would ``/dev/ttyUSB0``. Like the real sensor it
+driver opens that path with pyserial as it would ``/dev/ttyUSB0``. The link is made only where
+nothing is (an existing file, device node or link is refused, never replaced) and removed only
+while it is still the emulator's own. Like the real sensor it
 streams only after the start command ``48 AA 0D 0A`` and stops on ``43 AA 0D 0A``.
 
 It is a device of a :class:`SlotLoop`: ``attach(loop)`` makes the pty and has the loop read
@@ -44,6 +46,7 @@ from hilrig.drivers.ft.gravity import STANDARD_GRAVITY_IN_BASE, ToolLoad
 from hilrig.drivers.ft.wire import FRAME, HEADER, KGF_N, START_COMMAND, STOP_COMMAND, TAIL
 from hilrig.emulator.outbox import Outbox
 from hilrig.emulator.slots import Device, SlotLoop
+from hilrig.errors import HilrigError
 
 Source = Callable[[float], Sequence[float]]
 Orientation = Callable[[float], NDArray[np.float64]]
@@ -100,10 +103,16 @@ class _Pty:
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
         os.set_blocking(self.master, False)
-        temporary = link.with_name(link.name + ".new")
-        temporary.unlink(missing_ok=True)
-        os.symlink(os.ttyname(self.slave), temporary)
-        os.replace(temporary, link)
+        self.target = os.ttyname(self.slave)
+        try:  # only where nothing is: never over a file, a device node or someone's link
+            os.symlink(self.target, link)
+        except OSError as error:
+            os.close(self.master)
+            os.close(self.slave)
+            why = "already exists" if isinstance(error, FileExistsError) else error.strerror
+            raise HilrigError(
+                f"{link}: {why}; the emulated sensor's port is created only where nothing is"
+            ) from None
 
     def write(self, data: bytes | bytearray) -> int:
         try:
@@ -112,7 +121,9 @@ class _Pty:
             return 0
 
     def close(self, link: Path) -> None:
-        link.unlink(missing_ok=True)
+        """Close the pair; remove ``link`` only while it is still this pty's symlink."""
+        if link.is_symlink() and os.readlink(link) == self.target:
+            link.unlink()
         os.close(self.master)
         os.close(self.slave)
 

@@ -41,3 +41,21 @@ def test_rig_serve_prints_endpoints_that_work_and_stops_cleanly(tmp_path: Path) 
         server.kill()
     assert server.returncode == 0
     assert out.startswith("stopped: ") and " F/T frames, " in out
+
+
+def test_rig_serve_refuses_a_port_path_that_exists_and_leaves_it_alone(tmp_path: Path) -> None:
+    existing = tmp_path / "copy-of-a-recording.mcap"
+    existing.write_bytes(b"\x89MCAP0\r\n volunteer data")
+    hilrig = Path(sys.executable).with_name("hilrig")
+    done = subprocess.run(
+        [str(hilrig), "rig", "serve", "--port-path", str(existing)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [
+        f"error: {existing}: already exists; the emulated sensor's port is created only where "
+        "nothing is"
+    ]
+    assert existing.read_bytes() == b"\x89MCAP0\r\n volunteer data"
