@@ -94,7 +94,7 @@ def edge_times(t_s: FloatArray) -> FloatArray:
     """``t_s`` with one more time appended, one sample interval past the last (s).
 
     Index i of the result is when sample i starts; index T is when the data ends. Sample i's
-    offset, commanded at tick i, belongs to index i + 1 (DESIGN.md: e[n] = e(t_n + dt)).
+    offset, commanded at tick i, belongs to index i + 1 (docs/analysis.md: e[n] = e(t_n + dt)).
     """
     last_interval = float(t_s[-1] - t_s[-2]) if t_s.shape[0] > 1 else 0.0
     return np.append(t_s, t_s[-1] + last_interval)

@@ -6,7 +6,7 @@ rad/s; times in s. :func:`unit` names the unit of any metric on any group.
 An event's window on an axis runs from its start to the next event of the same group (or the
 end of the data): the offset keeps moving after the force is gone, so its largest value and its
 return are looked for there. ``offset[n]`` belongs to the time of tick n + 1 (it is the offset
-commanded at tick n, DESIGN.md's e[n] = e(t_n + dt)).
+commanded at tick n: e[n] = e(t_n + dt), docs/analysis.md).
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ def unit(metric: str, group: AxisGroup | str) -> str:
 class MetricsConfig:
     """The recovery band: an offset has recovered once |offset| stays within
     max(``recovery_floor``, ``recovery_fraction`` * the event's max |offset|); the floor is in m
-    on Cartesian axes and rad on joints (DESIGN.md: 1 mm or 0.001 rad, 2 %)."""
+    on Cartesian axes and rad on joints (docs/analysis.md: 1 mm or 0.001 rad, 2 %)."""
 
     recovery_floor: float = 1e-3
     recovery_fraction: float = 0.02

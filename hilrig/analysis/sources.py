@@ -41,7 +41,7 @@ class Run:
 
     ``t_s`` (T,) increasing, s; ``force``, ``offset``, ``offset_rate`` (T, A), one column per
     name in ``axes`` (N or N*m; m or rad; m/s or rad/s). ``offset[n]`` is the offset commanded at
-    tick n, which belongs to the next tick's time (DESIGN.md: e[n] = e(t_n + dt)).
+    tick n, which belongs to the next tick's time (docs/analysis.md: e[n] = e(t_n + dt)).
     ``commanded_t_s`` (C,) and ``commanded_joints_rad`` (C, 6) are the joint targets sent to the
     robot, when recorded. Raises AnalysisError for mismatched shapes or times that go back.
     """

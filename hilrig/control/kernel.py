@@ -110,7 +110,7 @@ def law_gains(
     f: float,
     group_sumsq: float,
 ) -> tuple[float, float]:
-    """Damping and stiffness the law commands on axis i for force f (DESIGN.md, Control)."""
+    """Damping and stiffness the law commands on axis i for force f (docs/control.md)."""
     b_d = P[BD, i]
     k_d = P[KD, i]
     if law == FIXED:

@@ -23,7 +23,7 @@ PerAxis = float | tuple[float, ...]
 
 
 class Law(StrEnum):
-    """The three admittance laws of DESIGN.md (Control)."""
+    """The three admittance laws (docs/control.md, The law, per axis)."""
 
     FIXED = "fixed"
     VARIABLE_STIFFNESS = "variable-stiffness"
@@ -33,7 +33,7 @@ class Law(StrEnum):
 class ChiReading(StrEnum):
     """How the stiffness weight chi_i of eq. (5) is read from the garbled PDF."""
 
-    SQUARE = "square"  # chi_i = tanh(f_i**2)  (DESIGN.md's reading, the default)
+    SQUARE = "square"  # chi_i = tanh(f_i**2)  (hilrig's reading, the default: docs/control.md)
     ABS = "abs"  # chi_i = tanh(|f_i|)   (the "2" read as a norm subscript)
     GROUP_SQUARE = (
         "group-square"  # chi = tanh(|f|**2) over the axis group ("no force in any direction")

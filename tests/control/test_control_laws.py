@@ -1,4 +1,4 @@
-"""The laws' damping and stiffness against hand-computed values (DESIGN.md, Control)."""
+"""The laws' damping and stiffness against hand-computed values (docs/control.md)."""
 
 import math
 
