@@ -1,6 +1,6 @@
 """Joint limits of the AUBO-i5: position, velocity and acceleration, per joint J1..J6.
 
-Position and velocity limits are AUBO's published numbers (DESIGN.md, The rig). AUBO publishes
+Position and velocity limits are AUBO's published numbers (docs/rig.md). AUBO publishes
 no joint acceleration limits; the values here are hilrig's conservative choice: about one second
 from rest to full speed on every joint, far below what the drives can do, because the safety
 clamp uses them to bound every commanded step whatever the controller asks.

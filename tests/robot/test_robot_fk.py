@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from hilrig.robot import AUBO_I5_LIMITS, RobotModel, RobotModelError, aubo_i5_urdf
 
-# AUBO's public DH values (DESIGN.md), modified (Craig) convention:
+# AUBO's public DH values (docs/rig.md, The robot model), modified (Craig) convention:
 # alpha[i-1], a[i-1] (m), d[i] (m), theta offset[i] (rad)
 DH_TABLE = (
     (0.0, 0.0, 0.122, math.pi),
