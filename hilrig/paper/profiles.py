@@ -1,4 +1,4 @@
-"""The paper's scripted collision inputs, eq. (15)-(19), with the signs DESIGN.md restores.
+"""The paper's collision inputs, eq. (15)-(19), with the signs of docs/paper-reproduction.md.
 
 Every profile is piecewise linear in time, zero outside its support and continuous everywhere
 (the pieces meet at their breakpoints and at the support's ends). Time is in seconds, forces in
