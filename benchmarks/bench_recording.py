@@ -60,7 +60,7 @@ SPECS = {spec.topic: spec for spec in default_channels()}
 
 
 def tick_samples(i: int, f: list[float]) -> Iterator[tuple[str, Sample]]:
-    """One loop tick of every periodic topic of DESIGN.md (no events), values from ``f``."""
+    """A loop tick of each periodic topic of docs/recording-format.md (no events), values ``f``."""
     t = INFO.start_monotonic_ns + i * 1_000_000
     v, w, j = (f[0], f[1], f[2]), (f[3], f[4], f[5]), f[:6]
     yield "/ft/wrist", WrenchSample(t, v, w)

@@ -32,7 +32,7 @@ class MessageType(enum.Enum):
     STRING = "std_msgs/msg/String"
 
 
-#: The topics of DESIGN.md and their types (plus the URDF, as ROS publishes it).
+#: The topics of docs/recording-format.md and their types (plus the URDF, as ROS publishes it).
 TOPICS: Mapping[str, MessageType] = {
     "/robot_description": MessageType.STRING,
     "/ft/wrist": MessageType.WRENCH,
@@ -178,7 +178,7 @@ def default_channels(
     controller: str = "adaptive",
     base_frame: str = "base_link",
 ) -> list[ChannelSpec]:
-    """The channels of DESIGN.md for an AUBO-i5 with both F/T sensors and one controller."""
+    """The channels of docs/recording-format.md: an AUBO-i5, both F/T sensors, one controller."""
     wrench = MessageType.WRENCH
     return [
         ChannelSpec("/ft/wrist", wrench, frame_id="ft_wrist"),

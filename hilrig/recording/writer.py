@@ -3,9 +3,10 @@
 Messages are packed with one ``struct`` call each (:mod:`.encode`) into an in-memory chunk, in
 arrival order, as rosbag2 writes them. A chunk is compressed, written and flushed to the
 operating system as soon as it spans ``chunk_span_s`` of log time, so a killed process loses at
-most that much (0.25 s by default; DESIGN.md allows 0.5 s) and ``hilrig recover`` restores the
-rest. Schemas, channels, metadata and attachments are written before any chunk, so a file cut
-anywhere is recoverable. Long sessions can be split into numbered files by duration or size.
+most that much (0.25 s by default, 0.5 s at most: docs/recording-format.md) and ``hilrig recover``
+restores the rest. Schemas, channels, metadata and attachments are written before any chunk, so
+a file cut anywhere is recoverable. Long sessions can be split into numbered files by duration or
+size.
 
 A write costs about 2 us; closing a chunk compresses its 0.25 s of data (about 1 ms at 1 kHz
 on every topic), so call the writer from a logging thread rather than from the control tick.

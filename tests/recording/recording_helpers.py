@@ -56,7 +56,7 @@ class Written:
 
 
 def samples(ticks: int, *, seed: int = 0, period_ns: int = 1_000_000) -> list[tuple[str, Sample]]:
-    """``ticks`` loop ticks of every DESIGN.md topic with random values, events now and then."""
+    """``ticks`` ticks of every topic of docs/recording-format.md, random values, some events."""
     rng = np.random.default_rng(seed)
     out: list[tuple[str, Sample]] = []
     for i in range(ticks):
