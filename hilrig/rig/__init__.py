@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from hilrig.rig.child import START_METHOD, ChildProcess
+    from hilrig.rig.kinds import RigKind
     from hilrig.rig.live_port import LiveReportLike, LiveViewPort
     from hilrig.rig.loop import ControlLoop, LoopConfig, LoopSummary
     from hilrig.rig.recorder_feed import RecorderFeed
@@ -27,13 +28,14 @@ if TYPE_CHECKING:
     from hilrig.rig.rig_process import FAULTS, RigProcess
     from hilrig.rig.rings import Rows
     from hilrig.rig.safety import SafetyClamp, SafetyConfig
-    from hilrig.rig.session import RigKind, SessionConfig, SessionResult, record_session
+    from hilrig.rig.session import SessionConfig, SessionResult, record_session
     from hilrig.rig.trajectory import Trajectory, make_trajectory
     from hilrig.rig.view_feed import VIEW_RATE_HZ, ViewBatch, ViewCounts, ViewForwarder
     from hilrig.rig.virtual import VirtualInput
 
 _MODULES = {
     "child": ("START_METHOD", "ChildProcess"),
+    "kinds": ("RigKind",),
     "live_port": ("LiveReportLike", "LiveViewPort"),
     "loop": ("ControlLoop", "LoopConfig", "LoopSummary"),
     "recorder_feed": ("RecorderFeed",),
@@ -42,7 +44,7 @@ _MODULES = {
     "rig_process": ("FAULTS", "RigProcess"),
     "rings": ("Rows",),
     "safety": ("SafetyClamp", "SafetyConfig"),
-    "session": ("RigKind", "SessionConfig", "SessionResult", "record_session"),
+    "session": ("SessionConfig", "SessionResult", "record_session"),
     "trajectory": ("Trajectory", "make_trajectory"),
     "view_feed": ("VIEW_RATE_HZ", "ViewBatch", "ViewCounts", "ViewForwarder"),
     "virtual": ("VirtualInput",),
