@@ -4,21 +4,23 @@ Pure computation, no I/O. The public API::
 
     simulate(law, force, dt, params) -> SimResult      # a whole trace (T, A), from rest
     make(law, params, axes, dt) -> AdmittanceController  # .step(force_row) per tick
+    controller.run_into(force, out, contact)            # a block of ticks into your arrays
+    damping_ratio(damping, stiffness, mass, out=None)   # zeta, bit-equal to every zeta here
 
-Both run one compiled kernel, so they give identical numbers. Compiled callers (the rig's tick)
-call that kernel themselves: ``run_compiled(*controller.kernel_arrays()[:7])``.
+All of them run one compiled kernel, so they give identical numbers. ``run_into`` writes the
+quantities named by ``OUTPUTS``, in that order. Compiled callers (the rig's tick) call that
+kernel themselves: ``run_compiled(*controller.kernel_arrays()[:7])``.
 """
 
 from hilrig.control.controller import (
+    OUTPUTS,
     AdmittanceController,
     KernelArrays,
-    SimResult,
-    gains,
+    damping_ratio,
     make,
-    resolve_params,
-    simulate,
 )
 from hilrig.control.kernel import run as run_compiled
+from hilrig.control.packed import ParamsLike, resolve_params
 from hilrig.control.params import (
     AdmittanceParams,
     AxisBounds,
@@ -31,12 +33,14 @@ from hilrig.control.params import (
 )
 from hilrig.control.presets import PAPER_DT_S, PRESETS, preset
 from hilrig.control.stability import StabilityReport, stability_report
+from hilrig.control.traces import SimResult, gains, simulate
 from hilrig.errors import NonFiniteForceError, ParameterError
 
 # The contact state codes (``SimResult.contact``) are the recording's; the kernel emits them.
 from hilrig.recording.samples import ContactState
 
 __all__ = [
+    "OUTPUTS",
     "PAPER_DT_S",
     "PRESETS",
     "AdmittanceController",
@@ -50,10 +54,12 @@ __all__ = [
     "Law",
     "NonFiniteForceError",
     "ParameterError",
+    "ParamsLike",
     "SimResult",
     "StabilityReport",
     "bounds",
     "combine",
+    "damping_ratio",
     "gains",
     "make",
     "preset",

@@ -15,6 +15,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from hilrig.recording.samples import ContactState
+
 # Rows of the parameter array P (NP, A).
 M, BD, KD, A1, A2, BETA, DELTA, BMIN, GROWTH, TOL, NTERMS, NSQ, DT = range(13)
 NP = 13
@@ -27,16 +29,16 @@ NS = 13
 # Rows of the int group state G (NG, A), indexed by group.
 STATE, CNT_ABOVE, CNT_BELOW, TICKS = range(4)
 NG = 4
-# Rows of the output array out (NO, T, A); zeta is derived from damping and stiffness.
-OUT_OFFSET, OUT_VELOCITY, OUT_DAMPING, OUT_STIFFNESS = range(4)
-NO = 4
+# Rows of the output array out (len(OUTPUTS), T, A); zeta is derived from damping and stiffness.
+OUTPUTS = ("offset", "velocity", "damping", "stiffness")
+OUT_OFFSET, OUT_VELOCITY, OUT_DAMPING, OUT_STIFFNESS = range(len(OUTPUTS))
 
-# Codes shared with params.py's enums (by position).
+# Codes shared with params.py's enums (by position) and the recording's ContactState.
 FIXED, VARIABLE_STIFFNESS, ADAPTIVE = 0, 1, 2
 CHI_SQUARE, CHI_ABS, CHI_GROUP_SQUARE = 0, 1, 2
 BETA_CAP, BETA_MAX = 0, 1
 ZOH, EULER = 0, 1
-FREE, CONTACT, HOLDING, RECOVERING = 0, 1, 2, 3
+FREE, CONTACT, HOLDING, RECOVERING = (int(state) for state in ContactState)
 TANH_IS_ONE = 19.1
 
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from hilrig.control.controller import ParamsLike, resolve_params
+from hilrig.control.packed import ParamsLike, resolve_params
 from hilrig.control.params import Law, validate
 
 

@@ -1,12 +1,12 @@
 """The replay engine: every run over one force trace, straight into the result table's memory.
 
-Each run is the admittance kernel of :mod:`hilrig.control` started from rest, exactly what
+Each run is a :mod:`hilrig.control` controller started from rest, exactly what
 :func:`hilrig.control.simulate` computes (the tests hold them equal to the last bit). Instead of
-letting ``simulate`` allocate (T, A) arrays and then copying them into the table, the kernel
-writes each tick's offset, velocity, damping and stiffness directly into the table's columns
-(strided views), in blocks of ticks so that progress can be reported; force and zeta are then
-filled column-wise with numpy. That halves the memory traffic, which is what a long replay
-spends its time on (see also :mod:`.blocks`, where that memory comes from).
+letting ``simulate`` allocate (T, A) arrays and then copying them into the table, the
+controller's ``run_into`` writes each tick's offset, velocity, damping and stiffness directly
+into the table's columns (strided views), in blocks of ticks so that progress can be reported;
+force and zeta are then filled column-wise with numpy. That halves the memory traffic, which is
+what a long replay spends its time on (see also :mod:`.blocks`, where that memory comes from).
 
 Runs go either one after the other in this process or, with ``jobs`` > 1, to a
 ``ProcessPoolExecutor`` of forked local processes that write into a shared anonymous mapping
@@ -27,12 +27,11 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from hilrig.control import Law, ParameterError, kernel
-from hilrig.control.controller import Packed
+from hilrig.control import OUTPUTS, AdmittanceController, Law, ParameterError, damping_ratio, make
 from hilrig.errors import ReplayError
 from hilrig.replay.blocks import Blocks
 from hilrig.replay.inputs import PathLike, load_trace
-from hilrig.replay.results import FLOAT_ROWS, FORCE_ROW, ZETA_ROW, Run, frame, table_bytes
+from hilrig.replay.results import FLOAT_ROWS, Run, frame, table_bytes
 from hilrig.replay.specs import ControllerSpec, parse_specs
 from hilrig.replay.trace import ForceTrace
 
@@ -98,7 +97,7 @@ def replay(
             f"{len(runs)} runs of {ticks} ticks need a {need / 2**30:.1f} GiB table, more than "
             f"this machine's {have / 2**30:.1f} GiB; replay fewer runs or a shorter input"
         )
-    packed = [_packed(r, trace) for r in runs]
+    controllers = [_controller(r, trace) for r in runs]
     force = np.require(trace.force, np.float64, ["C_CONTIGUOUS", "WRITEABLE"])
     workers = choose_jobs(runs, axes * ticks) if jobs is None else max(1, jobs)
     workers = min(workers, len(runs))
@@ -106,11 +105,11 @@ def replay(
     pool = workers > 1 and "fork" in multiprocessing.get_all_start_methods()
     blocks = Blocks.allocate(axes, len(FLOAT_ROWS), ticks * len(runs), shared=pool)
     if pool:
-        _warm_up(force, packed[0], blocks)  # compile before forking: once, not per process
-        _in_pool(force, packed, blocks, workers, report)
+        _warm_up(force, controllers[0], blocks)  # compile before forking: once, not per process
+        _in_pool(force, controllers, blocks, workers, report)
     else:
-        for index, p in enumerate(packed):
-            simulate_into(force, p, blocks, index * ticks, report.add)
+        for index, controller in enumerate(controllers):
+            simulate_into(force, controller, blocks, index * ticks, report.add)
     blocks.settle()
     return frame(trace, runs, blocks)
 
@@ -125,9 +124,9 @@ def choose_jobs(runs: Sequence[Run], axis_ticks: int) -> int:
     return 1
 
 
-def _packed(run: Run, trace: ForceTrace) -> Packed:
+def _controller(run: Run, trace: ForceTrace) -> AdmittanceController:
     try:
-        return Packed.build(run.law, run.params, len(trace.axis_names), trace.dt_s)
+        return make(run.law, run.params, len(trace.axis_names), trace.dt_s)
     except ParameterError as err:
         raise ReplayError(f"run {run.name}: {err}") from err
 
@@ -148,37 +147,28 @@ class _Report:
 
 def simulate_into(
     force: NDArray[np.float64],
-    packed: Packed,
+    controller: AdmittanceController,
     blocks: Blocks,
     row0: int,
     on_block: Callable[[int], None] | None = None,
 ) -> None:
-    """Run ``packed``'s controller from rest over ``force`` (T, A), writing rows ``row0`` ..
+    """Run ``controller`` from rest over ``force`` (T, A), writing rows ``row0`` ..
     ``row0 + T`` of ``blocks``; ``on_block(ticks)`` after each block of ticks."""
-    ticks, axes = force.shape
-    state, groups = packed.initial_state()
+    ticks = force.shape[0]
+    controller.reset()
     floats, contact = blocks.floats, blocks.contact
     for start in range(0, ticks, BLOCK_TICKS):
         stop = min(start + BLOCK_TICKS, ticks)
         rows = slice(row0 + start, row0 + stop)
-        out = floats[:, : kernel.NO, rows].transpose(1, 2, 0)  # (outputs, ticks, axes) view
-        code = kernel.run(
-            force[start:stop], packed.P, packed.cfg, state, groups, out, contact[:, rows].T
-        )
-        if code >= 0:  # inputs are checked finite; this is a guard, not a path
-            tick, axis = divmod(code, axes)
-            raise ReplayError(f"force at tick {start + tick}, axis {axis} is not finite")
+        out = floats[:, : len(OUTPUTS), rows].transpose(1, 2, 0)  # (outputs, ticks, axes) view
+        controller.run_into(force[start:stop], out, contact[:, rows].T)
         if on_block is not None:
             on_block(stop - start)
     rows = slice(row0, row0 + ticks)
-    floats[:, FORCE_ROW, rows] = force.T
-    # zeta = b / (2 sqrt(m k)), in the order SimResult.zeta computes it (bit-equal)
-    zeta = floats[:, ZETA_ROW, rows]
-    m = packed.P[kernel.M][:, None]
-    np.multiply(floats[:, kernel.OUT_STIFFNESS, rows], m, out=zeta)
-    np.sqrt(zeta, out=zeta)
-    np.multiply(zeta, 2.0, out=zeta)
-    np.divide(floats[:, kernel.OUT_DAMPING, rows], zeta, out=zeta)
+    column = {quantity: floats[:, row, rows] for quantity, row in FLOAT_ROWS.items()}
+    column["force"][:] = force.T
+    mass = controller.mass[:, None]
+    damping_ratio(column["damping"], column["stiffness"], mass, out=column["zeta"])
 
 
 # -- the process pool -------------------------------------------------------------------------
@@ -186,9 +176,11 @@ def simulate_into(
 
 @dataclass(frozen=True)
 class _Shared:
-    """What forked workers inherit: the input and the shared result blocks."""
+    """What forked workers inherit: the input, the runs' controllers and the shared result
+    blocks (so nothing but indices is pickled)."""
 
     force: NDArray[np.float64]
+    controllers: Sequence[AdmittanceController]
     blocks: Blocks
 
 
@@ -199,21 +191,21 @@ def _init_worker(shared: _Shared) -> None:
     _inherited.append(shared)
 
 
-def _work(index: int, row0: int, packed: Packed) -> int:
+def _work(index: int, row0: int) -> int:
     shared = _inherited[-1]
-    simulate_into(shared.force, packed, shared.blocks, row0)
+    simulate_into(shared.force, shared.controllers[index], shared.blocks, row0)
     return index
 
 
-def _warm_up(force: NDArray[np.float64], packed: Packed, blocks: Blocks) -> None:
+def _warm_up(force: NDArray[np.float64], controller: AdmittanceController, blocks: Blocks) -> None:
     """One tick through the kernel with the block's array layouts, so forked workers inherit
     the compiled code (the row is overwritten by the real run later)."""
-    simulate_into(force[:1], packed, blocks, 0)
+    simulate_into(force[:1], controller, blocks, 0)
 
 
 def _in_pool(
     force: NDArray[np.float64],
-    packed: Sequence[Packed],
+    controllers: Sequence[AdmittanceController],
     blocks: Blocks,
     workers: int,
     report: _Report,
@@ -223,9 +215,12 @@ def _in_pool(
     sys.stdout.flush()
     sys.stderr.flush()
     with ProcessPoolExecutor(
-        workers, mp_context=context, initializer=_init_worker, initargs=(_Shared(force, blocks),)
+        workers,
+        mp_context=context,
+        initializer=_init_worker,
+        initargs=(_Shared(force, controllers, blocks),),
     ) as pool:
-        futures = [pool.submit(_work, i, i * ticks, p) for i, p in enumerate(packed)]
+        futures = [pool.submit(_work, i, i * ticks) for i in range(len(controllers))]
         for future in as_completed(futures):
             future.result()
             report.add(ticks)

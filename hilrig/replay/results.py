@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from hilrig.control import AdmittanceParams, Law, kernel
+from hilrig.control import OUTPUTS, AdmittanceParams, Law
 from hilrig.replay.blocks import Blocks
 from hilrig.replay.specs import ControllerSpec, Value
 from hilrig.replay.trace import ForceTrace
@@ -33,15 +33,9 @@ RUNS_KEY = "hilrig.runs"
 INPUT_KEY = "hilrig.input"
 QUANTITIES = ("force", "offset", "velocity", "damping", "stiffness", "zeta")
 CONTACT = "contact"
-#: Rows of the float block: the kernel's outputs where it writes them, then force and zeta.
-_KERNEL_ROWS = {
-    "offset": kernel.OUT_OFFSET,
-    "velocity": kernel.OUT_VELOCITY,
-    "damping": kernel.OUT_DAMPING,
-    "stiffness": kernel.OUT_STIFFNESS,
-}
-FORCE_ROW, ZETA_ROW = kernel.NO, kernel.NO + 1
-FLOAT_ROWS = {**_KERNEL_ROWS, "force": FORCE_ROW, "zeta": ZETA_ROW}
+#: Rows of the float block: the controller's outputs in the order it writes them, then force
+#: and zeta (filled afterwards).
+FLOAT_ROWS = {quantity: row for row, quantity in enumerate((*OUTPUTS, "force", "zeta"))}
 _BYTES_PER_AXIS_ROW = len(FLOAT_ROWS) * 8 + 1
 
 

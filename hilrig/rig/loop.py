@@ -32,8 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from hilrig.control import AdmittanceController, Law, combine, make, resolve_params
-from hilrig.control.controller import ParamsLike
+from hilrig.control import AdmittanceController, Law, ParamsLike, combine, make, resolve_params
 from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.drivers.joint_targets.wire import Mode
 from hilrig.errors import HilrigError

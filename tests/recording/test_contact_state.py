@@ -1,12 +1,14 @@
-"""One ContactState, codes 0..3: the recording's enum is the controller's, and the compiled
-kernel and the ControllerState message definition use the same codes."""
+"""One ContactState, codes 0..3: the recording's enum is the controller's, the controller
+emits its codes and the ControllerState message definition declares the same ones."""
 
 from __future__ import annotations
 
 import re
 
+import numpy as np
+
 from hilrig.control import ContactState as ControlContactState
-from hilrig.control import kernel
+from hilrig.control import simulate
 from hilrig.recording import ContactState, MessageType
 from hilrig.recording.msgdef import packaged_message
 
@@ -22,8 +24,12 @@ def test_the_codes_are_free_contact_holding_recovering() -> None:
 
 def test_the_controller_uses_the_recordings_enum_and_codes() -> None:
     assert ControlContactState is ContactState
-    kernel_codes = (kernel.FREE, kernel.CONTACT, kernel.HOLDING, kernel.RECOVERING)
-    assert kernel_codes == tuple(int(s) for s in ContactState)
+    force = np.zeros(5000)
+    force[10:600] = 3.0  # contact, holding after 0.5 s, released, recovering, free again
+    contact = simulate("adaptive", force, 0.001, "adaptive").contact[:, 0]
+    visited = contact[np.flatnonzero(np.diff(contact, prepend=-1))]
+    names = [ContactState(code).name for code in visited]
+    assert names == ["FREE", "CONTACT", "HOLDING", "RECOVERING", "FREE"]
 
 
 def test_the_message_definition_declares_the_same_codes() -> None:
