@@ -15,7 +15,7 @@ import os
 import select
 import socket
 
-from hilrig.errors import ParameterError
+from hilrig.errors import LinkError, ParameterError
 
 
 class Backoff:
@@ -54,8 +54,8 @@ class Backoff:
 def start_tcp_connect(address: tuple[str, int]) -> socket.socket:
     """A non-blocking TCP_NODELAY socket whose connect to ``address`` is under way (or done).
 
-    Raises OSError if it failed at once. ``address`` should be numeric: a host name is resolved
-    here, blocking.
+    Raises LinkError if it failed at once. ``address`` should be numeric: a host name is
+    resolved here, blocking.
     """
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     sock.setblocking(False)
@@ -63,16 +63,16 @@ def start_tcp_connect(address: tuple[str, int]) -> socket.socket:
     code = sock.connect_ex(address)
     if code not in (0, errno.EINPROGRESS):
         sock.close()
-        raise OSError(code, os.strerror(code))
+        raise LinkError(f"TCP connect failed: {os.strerror(code)}")
     return sock
 
 
 def tcp_connected(sock: socket.socket) -> bool:
-    """Whether the connect under way on ``sock`` finished (never blocks); OSError if it failed."""
+    """Whether the connect under way on ``sock`` finished (never blocks); LinkError if it failed."""
     _, writable, _ = select.select([], [sock], [], 0)
     if not writable:
         return False
     code = sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR)
     if code:
-        raise OSError(code, os.strerror(code))
+        raise LinkError(f"TCP connect failed: {os.strerror(code)}")
     return True

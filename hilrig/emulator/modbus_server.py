@@ -29,6 +29,7 @@ from pymodbus.pdu.register_message import (
 from hilrig.drivers.joint_targets.frame import rtu_frame_size
 from hilrig.drivers.joint_targets.wire import JointTargets, RegisterMap
 from hilrig.emulator.slots import Device, SlotLoop, accept_client
+from hilrig.errors import ProtocolError
 
 MAX_REQUEST_BYTES = 1024  # unframed bytes beyond which a client's input is discarded
 MAX_REGISTERS = 0x7B  # the most function 16 may write (Modbus spec)
@@ -163,7 +164,7 @@ class EmulatedModbusServer(Device):
             return ExceptionResponse(code, ExcCodes.ILLEGAL_ADDRESS, request.dev_id)
         try:
             targets = self._map.decode(list(request.registers))
-        except ValueError:
+        except ProtocolError:
             self.rejected += 1
             return ExceptionResponse(code, ExcCodes.ILLEGAL_VALUE, request.dev_id)
         self.writes += 1

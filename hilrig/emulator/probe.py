@@ -21,6 +21,7 @@ from hilrig.drivers.ft.wire import START_COMMAND, STOP_COMMAND, FtSample, Kunwei
 from hilrig.drivers.joint_targets.wire import JointTargets, Mode, RegisterMap
 from hilrig.drivers.robot_state.wire import RobotState, RobotStateDecoder
 from hilrig.emulator.rig import RigEndpoints
+from hilrig.errors import LinkError
 
 BAUD = 460800
 
@@ -48,7 +49,7 @@ class RigProbe:
         host, port = self._endpoints.modbus
         self.modbus = ModbusTcpClient(host, port=port, framer=FramerType.RTU, timeout=5)
         if not self.modbus.connect():  # type: ignore[no-untyped-call]
-            raise ConnectionError(f"no Modbus endpoint at {host}:{port}")
+            raise LinkError(f"no Modbus endpoint at {host}:{port}")
         return self
 
     def read(self, timeout_s: float = 0.0) -> tuple[list[FtSample], list[RobotState]]:

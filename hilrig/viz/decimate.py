@@ -15,6 +15,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from hilrig.errors import ViewError
+
 IntArray = NDArray[np.int64]
 FloatArray = NDArray[np.float64]
 
@@ -50,9 +52,7 @@ def minmax_indices(values: FloatArray, max_points: int) -> IntArray:
     never chosen unless a bucket holds nothing else.
     """
     n = len(values)
-    if max_points < 0:
-        raise ValueError(f"max_points {max_points} must be >= 0")
-    if max_points == 0 or n <= max_points:
+    if _keeps_all(n, max_points):
         return np.arange(n, dtype=np.int64)
     buckets = max(1, max_points // 2)
     return _minmax(np.ascontiguousarray(values, dtype=np.float64), buckets)
@@ -63,11 +63,16 @@ def peak_indices(magnitude: FloatArray, max_points: int) -> IntArray:
     of largest ``magnitude`` (the first on ties or all-NaN). All when N <= ``max_points`` or
     ``max_points`` is 0."""
     n = len(magnitude)
-    if max_points < 0:
-        raise ValueError(f"max_points {max_points} must be >= 0")
-    if max_points == 0 or n <= max_points:
+    if _keeps_all(n, max_points):
         return np.arange(n, dtype=np.int64)
     return _peaks(np.ascontiguousarray(magnitude, dtype=np.float64), max_points)
+
+
+def _keeps_all(samples: int, max_points: int) -> bool:
+    """Whether a budget of ``max_points`` (0: none) keeps all ``samples``; ViewError if < 0."""
+    if max_points < 0:
+        raise ViewError(f"max_points {max_points} must be >= 0")
+    return max_points == 0 or samples <= max_points
 
 
 @njit(cache=True, nogil=True)

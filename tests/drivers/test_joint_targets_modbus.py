@@ -28,7 +28,13 @@ from pymodbus.pdu.register_message import (
 from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
 from hilrig.drivers.joint_targets.wire import JointTargets, Mode, RegisterMap
 from hilrig.emulator.modbus_server import EmulatedModbusServer
-from hilrig.errors import LinkError, ModbusExceptionError, ParameterError
+from hilrig.errors import (
+    DriverError,
+    LinkError,
+    ModbusExceptionError,
+    ParameterError,
+    ProtocolError,
+)
 
 MAP = RegisterMap()
 REQUEST_BYTES = 9 + 2 * MAP.count  # device id, function, address, count, byte count, CRC
@@ -93,8 +99,16 @@ def test_register_map_round_trip() -> None:
     assert len(registers) == MAP.count == 14
     assert registers[12:] == [65535, 1]
     assert MAP.decode(registers) == targets
-    with pytest.raises(ValueError, match="must be 6 finite values"):
-        MAP.encode(JointTargets((float("nan"),) * 6, 0, Mode.HOLD))
+    nan = JointTargets((float("nan"),) * 6, 0, Mode.HOLD)
+    with pytest.raises(DriverError) as err:
+        MAP.encode(nan)
+    assert (
+        str(err.value)
+        == "joint targets must be 6 finite values, got (nan, nan, nan, nan, nan, nan)"
+    )
+    with pytest.raises(ProtocolError) as err:
+        MAP.decode([*registers[:13], 7])
+    assert str(err.value) == "joint targets: unknown mode 7"
 
 
 @settings(deadline=None)  # the first example loads the request kernel
@@ -276,7 +290,7 @@ def test_connect_fails_clearly_when_no_robot_listens() -> None:
         writer.connect(timeout_s=0.2)
     assert str(err.value) == (
         f"joint targets rtu+tcp://127.0.0.1:{port}: cannot connect within 0.2 s "
-        "([Errno 111] Connection refused)"
+        "(TCP connect failed: Connection refused)"
     )
     assert not writer.is_connected
 

@@ -104,7 +104,7 @@ def test_connect_without_waiting_keeps_trying_until_the_robot_listens() -> None:
     client.connect(first_frame_timeout_s=None)
     poll_until(lambda: client.errors >= 3, client)  # refused, counted, retried with backoff
     assert not client.is_connected and client.fileno() == -1
-    assert client.last_error == "ConnectionRefusedError: [Errno 111] Connection refused"
+    assert client.last_error == "TCP connect failed: Connection refused"
     with EmulatedRobotStateServer(source, port=port):
         poll_until(lambda: client.decoder_stats().frames >= 5, client)
         assert client.is_connected and client.reconnects == 0  # the first link, not a reconnect
@@ -141,7 +141,7 @@ def test_connect_fails_clearly_when_no_robot_answers() -> None:
     except LinkError as err:
         assert str(err) == (
             f"robot state tcp://127.0.0.1:{port}: no valid frame within 0.2 s "
-            "(ConnectionRefusedError: [Errno 111] Connection refused)"
+            "(TCP connect failed: Connection refused)"
         )
     else:
         raise AssertionError("no error")

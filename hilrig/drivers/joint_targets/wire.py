@@ -19,6 +19,8 @@ import struct
 from dataclasses import dataclass
 from enum import IntEnum
 
+from hilrig.errors import DriverError, ProtocolError
+
 JOINTS = 6
 
 
@@ -60,9 +62,9 @@ class RegisterMap:
         return end - self.start
 
     def encode(self, targets: JointTargets) -> list[int]:
-        """The register values of one write (raises ValueError on non-finite targets)."""
+        """The register values of one write (raises DriverError on non-finite targets)."""
         if len(targets.q_rad) != JOINTS or not all(math.isfinite(q) for q in targets.q_rad):
-            raise ValueError(f"joint targets must be {JOINTS} finite values, got {targets.q_rad}")
+            raise DriverError(f"joint targets must be {JOINTS} finite values, got {targets.q_rad}")
         registers = [0] * self.count
         raw = struct.pack(f">{JOINTS}f", *targets.q_rad)
         words = struct.unpack(f">{2 * JOINTS}H", raw)
@@ -73,12 +75,13 @@ class RegisterMap:
         return registers
 
     def decode(self, registers: list[int]) -> JointTargets:
-        """The inverse of ``encode`` (raises ValueError on an unknown mode)."""
+        """The inverse of ``encode`` (raises ProtocolError on an unknown mode)."""
         at = self.targets[0] - self.start
         raw = struct.pack(f">{2 * JOINTS}H", *registers[at : at + 2 * JOINTS])
         q = struct.unpack(f">{JOINTS}f", raw)
-        return JointTargets(
-            q_rad=q,
-            sequence=registers[self.sequence[0] - self.start],
-            mode=Mode(registers[self.mode[0] - self.start]),
-        )
+        code = registers[self.mode[0] - self.start]
+        try:
+            mode = Mode(code)
+        except ValueError:
+            raise ProtocolError(f"joint targets: unknown mode {code}") from None
+        return JointTargets(q, registers[self.sequence[0] - self.start], mode)
