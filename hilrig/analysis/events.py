@@ -12,13 +12,17 @@ vectorised: an hour of 1 kHz data takes a fraction of a second.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from enum import StrEnum
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hilrig.errors import AnalysisError
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 CARTESIAN_AXES = ("x", "y", "z")
 JOINT_AXES = ("joint1", "joint2", "joint3", "joint4", "joint5", "joint6")
@@ -60,10 +64,15 @@ class EventConfig:
     merge_gap_s: float = 0.05
 
     def __post_init__(self) -> None:
-        for name in ("delta", "debounce_s", "merge_gap_s"):
-            value = getattr(self, name)
-            if not math.isfinite(value) or value < 0:
-                raise AnalysisError(f"event {name} must be finite and >= 0, got {value}")
+        require_non_negative(self, "event ")
+
+
+def require_non_negative(settings: DataclassInstance, prefix: str = "") -> None:
+    """AnalysisError naming the first field of ``settings`` that is negative or not finite."""
+    for name in (f.name for f in fields(settings)):
+        value = getattr(settings, name)
+        if not math.isfinite(value) or value < 0:
+            raise AnalysisError(f"{prefix}{name} must be finite and >= 0, got {value}")
 
 
 DEFAULT_EVENTS = EventConfig()

@@ -17,7 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hilrig.analysis.events import AxisGroup, CollisionEvent, FloatArray, edge_times, group_of
+from hilrig.analysis.events import (
+    AxisGroup,
+    CollisionEvent,
+    FloatArray,
+    edge_times,
+    group_of,
+    require_non_negative,
+)
 from hilrig.analysis.sources import Run
 from hilrig.errors import AnalysisError
 
@@ -54,10 +61,7 @@ class MetricsConfig:
     recovery_fraction: float = 0.02
 
     def __post_init__(self) -> None:
-        for name in ("recovery_floor", "recovery_fraction"):
-            value = getattr(self, name)
-            if not math.isfinite(value) or value < 0:
-                raise AnalysisError(f"{name} must be finite and >= 0, got {value}")
+        require_non_negative(self)
 
 
 DEFAULT_METRICS = MetricsConfig()

@@ -21,7 +21,8 @@ from hilrig.recording.mcap_records import MAGIC, RECORD_HEADER, Channel, Op, Sch
 from hilrig.recording.session import utc_iso
 
 _FOOTER_SIZE = RECORD_HEADER.size + 20
-_CHUNK_FIXED = struct.Struct("<QQQI")  # start, end, uncompressed size, uncompressed crc
+#: What reading a damaged or cut record raises (the cursor's own IndexError included).
+_DAMAGED = (IndexError, struct.error, UnicodeDecodeError)
 
 
 @dataclass(frozen=True)
@@ -133,16 +134,21 @@ class _Cursor:
         return out
 
 
-def parse_schema(c: _Cursor) -> Schema:
-    schema_id = c.u("<H")
-    name, encoding = c.string(), c.string()
-    return Schema(schema_id, name, encoding, c.raw(c.u("<I")))
-
-
-def parse_channel(c: _Cursor) -> Channel:
-    channel_id, schema_id = c.take("<HH")
-    topic, encoding = c.string(), c.string()
-    return Channel(channel_id, schema_id, topic, encoding, c.mapping())
+def _add_definition(index: FileIndex, opcode: int, c: _Cursor, *, keep_known: bool = False) -> None:
+    """Parse the Schema or Channel record (``opcode``) at ``c`` into ``index``; with
+    ``keep_known`` a record of the same id already there stays."""
+    if opcode == Op.SCHEMA:
+        schema_id = c.u("<H")
+        name, encoding = c.string(), c.string()
+        schema = Schema(schema_id, name, encoding, c.raw(c.u("<I")))
+        if not (keep_known and schema.id in index.schemas):
+            index.schemas[schema.id] = schema
+    else:
+        channel_id, schema_id = c.take("<HH")
+        topic, encoding = c.string(), c.string()
+        channel = Channel(channel_id, schema_id, topic, encoding, c.mapping())
+        if not (keep_known and channel.id in index.channels):
+            index.channels[channel.id] = channel
 
 
 def parse_chunk_head(c: _Cursor, offset: int, length: int) -> ChunkInfo:
@@ -152,10 +158,6 @@ def parse_chunk_head(c: _Cursor, offset: int, length: int) -> ChunkInfo:
     if c.pos + compressed_size > c.end:
         raise IndexError("chunk data ends early")
     return ChunkInfo(offset, length, start, end, compression, c.pos, compressed_size, size, crc, {})
-
-
-def parse_metadata(c: _Cursor) -> tuple[str, dict[str, str]]:
-    return c.string(), c.mapping()
 
 
 def open_mcap(path: str | os.PathLike[str]) -> tuple[Path, mmap.mmap]:
@@ -189,7 +191,7 @@ def _header(p: Path, mm: mmap.mmap) -> tuple[str, str, int]:
         if opcode != Op.HEADER or c.end > len(mm):
             raise IndexError
         return c.string(), c.string(), c.end
-    except (IndexError, struct.error, UnicodeDecodeError) as err:
+    except _DAMAGED as err:
         raise RecordingError(f"{p}: MCAP header record is missing or damaged") from err
 
 
@@ -236,18 +238,14 @@ def _read_summary(mm: mmap.mmap, index: FileIndex) -> bool:
             c = _Cursor(mm, pos + RECORD_HEADER.size, pos + RECORD_HEADER.size + length)
             if c.end > footer_at:
                 return False
-            if opcode == Op.SCHEMA:
-                schema = parse_schema(c)
-                index.schemas[schema.id] = schema
-            elif opcode == Op.CHANNEL:
-                channel = parse_channel(c)
-                index.channels[channel.id] = channel
+            if opcode in (Op.SCHEMA, Op.CHANNEL):
+                _add_definition(index, opcode, c)
             elif opcode == Op.CHUNK_INDEX:
                 chunks.append(_chunk_from_index(mm, c))
             elif opcode in (Op.METADATA_INDEX, Op.ATTACHMENT_INDEX):
                 _add_ref(index, opcode, c)
             pos = c.end
-    except (IndexError, struct.error, UnicodeDecodeError):
+    except _DAMAGED:
         return False
     if not index.channels and chunks:
         return False  # a summary without channels cannot be read on its own
@@ -310,12 +308,8 @@ def _scan(mm: mmap.mmap, pos: int, index: FileIndex) -> None:
                 index.chunks.append(parse_chunk_head(c, pos, end - pos))
             elif opcode == Op.MESSAGE_INDEX and index.chunks:
                 pending_index[c.u("<H")] = pos
-            elif opcode == Op.SCHEMA:
-                schema = parse_schema(c)
-                index.schemas[schema.id] = schema
-            elif opcode == Op.CHANNEL:
-                channel = parse_channel(c)
-                index.channels[channel.id] = channel
+            elif opcode in (Op.SCHEMA, Op.CHANNEL):
+                _add_definition(index, opcode, c)
             elif opcode == Op.METADATA:
                 index.metadata.append(RecordRef(pos, end - pos, c.string()))
             elif opcode == Op.ATTACHMENT:
@@ -328,7 +322,7 @@ def _scan(mm: mmap.mmap, pos: int, index: FileIndex) -> None:
                 index.attachments.append(ref)
             elif opcode == Op.MESSAGE:
                 index.loose_messages.append(pos)
-        except (IndexError, struct.error, UnicodeDecodeError):
+        except _DAMAGED:
             break
         if opcode in (Op.DATA_END, Op.FOOTER):
             _close_chunk(index, pending_index)
@@ -361,13 +355,8 @@ def add_definitions(index: FileIndex, data: bytes, positions: list[tuple[int, in
         _, length = RECORD_HEADER.unpack_from(data, offset)
         cursor = _Cursor(data, offset + RECORD_HEADER.size, offset + RECORD_HEADER.size + length)
         try:
-            if opcode == Op.SCHEMA:
-                schema = parse_schema(cursor)
-                index.schemas.setdefault(schema.id, schema)
-            else:
-                channel = parse_channel(cursor)
-                index.channels.setdefault(channel.id, channel)
-        except (IndexError, struct.error, UnicodeDecodeError):
+            _add_definition(index, opcode, cursor, keep_known=True)
+        except _DAMAGED:
             continue  # a damaged definition leaves its channel unreadable, reported later
 
 
@@ -389,6 +378,11 @@ def describe_truncation(index: FileIndex) -> str:
 
 
 def read_metadata(mm: mmap.mmap, ref: RecordRef) -> tuple[str, dict[str, str]]:
-    """The name and key-value pairs of the metadata record ``ref``."""
-    start = ref.offset + RECORD_HEADER.size
-    return parse_metadata(_Cursor(mm, start, ref.offset + ref.length))
+    """The name and key-value pairs of the metadata record ``ref``; RecordingError if damaged."""
+    c = _Cursor(mm, ref.offset + RECORD_HEADER.size, ref.offset + ref.length)
+    try:
+        return c.string(), c.mapping()
+    except _DAMAGED as err:
+        raise RecordingError(
+            f"metadata record {ref.name!r} at byte {ref.offset} is damaged"
+        ) from err

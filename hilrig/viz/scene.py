@@ -37,7 +37,6 @@ TOPICS = (
     "/events",
     "/robot_description",
 )
-_JOINTS = 6
 _EVENT_LEVELS = {
     EventKind.COLLISION_START: "WARN",
     EventKind.COLLISION_END: "INFO",

@@ -214,3 +214,10 @@ def test_recovery_and_response_times_are_never_negative(
     for m in event_metrics(run, events):
         assert m.recovery_time_s is None or m.recovery_time_s >= 0.0
         assert 0.0 < m.time_to_max_offset_s <= t_s[-1] + DT - m.start_s + 1e-12
+
+
+@pytest.mark.parametrize("field", ["recovery_floor", "recovery_fraction"])
+def test_bad_recovery_settings_are_refused(field: str) -> None:
+    with pytest.raises(AnalysisError) as err:
+        MetricsConfig(**{field: float("nan")})
+    assert str(err.value) == f"{field} must be finite and >= 0, got nan"

@@ -150,3 +150,18 @@ def test_missing_file_and_directory_are_one_line_errors(tmp_path: Path) -> None:
 def test_struct_of_the_crc_offset_matches_the_spec() -> None:
     # Guards the byte arithmetic of the CRC test: start, end and size are three u64 fields.
     assert struct.calcsize("<BQQQQ") == 9 + 8 + 8 + 8
+
+
+def test_a_damaged_metadata_record_is_one_line(small_session: Written, tmp_path: Path) -> None:
+    with open(small_session.path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    ref = summary.metadata_indexes[0]
+    data = bytearray(small_session.path.read_bytes())
+    map_at = ref.offset + 9 + 4 + len(ref.name.encode())  # opcode, length, name
+    data[map_at : map_at + 4] = struct.pack("<I", 0xFFFFFF00)  # the map runs past the record
+    path = tmp_path / "bad-metadata.mcap"
+    path.write_bytes(bytes(data))
+    with pytest.raises(RecordingError) as caught:
+        inspect(path)
+    assert str(caught.value) == f"metadata record {ref.name!r} at byte {ref.offset} is damaged"
