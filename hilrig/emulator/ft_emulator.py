@@ -33,7 +33,6 @@ import struct
 import tempfile
 import threading
 import time
-import tty
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -45,8 +44,8 @@ from numpy.typing import NDArray
 from hilrig.drivers.ft.gravity import STANDARD_GRAVITY_IN_BASE, ToolLoad
 from hilrig.drivers.ft.wire import FRAME, HEADER, KGF_N, START_COMMAND, STOP_COMMAND, TAIL
 from hilrig.emulator.outbox import Outbox
+from hilrig.emulator.pty_link import PtyLink
 from hilrig.emulator.slots import Device, SlotLoop
-from hilrig.errors import HilrigError
 
 Source = Callable[[float], Sequence[float]]
 Orientation = Callable[[float], NDArray[np.float64]]
@@ -96,38 +95,6 @@ class EmulatorStats:
     stops: int
 
 
-class _Pty:
-    """One raw pty pair; the slave stays open here so the master never reads EIO."""
-
-    def __init__(self, link: Path) -> None:
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)
-        os.set_blocking(self.master, False)
-        self.target = os.ttyname(self.slave)
-        try:  # only where nothing is: never over a file, a device node or someone's link
-            os.symlink(self.target, link)
-        except OSError as error:
-            os.close(self.master)
-            os.close(self.slave)
-            why = "already exists" if isinstance(error, FileExistsError) else error.strerror
-            raise HilrigError(
-                f"{link}: {why}; the emulated sensor's port is created only where nothing is"
-            ) from None
-
-    def write(self, data: bytes | bytearray) -> int:
-        try:
-            return os.write(self.master, data)
-        except BlockingIOError:
-            return 0
-
-    def close(self, link: Path) -> None:
-        """Close the pair; remove ``link`` only while it is still this pty's symlink."""
-        if link.is_symlink() and os.readlink(link) == self.target:
-            link.unlink()
-        os.close(self.master)
-        os.close(self.slave)
-
-
 class FtEmulator(Device):
     """A Kunwei sensor on a pty; drivers open ``port_path`` (a temporary one unless given).
 
@@ -164,7 +131,7 @@ class FtEmulator(Device):
         self._noise: list[list[float]] = []
         self._requests: deque[Callable[[int], None]] = deque()  # faults, applied by tick()
         self._loop: SlotLoop | None = None
-        self._pty: _Pty | None = None
+        self._pty: PtyLink | None = None
         self._out = Outbox(lambda data: 0, MAX_BACKLOG_BYTES)
         self._sent_before = self._dropped_before = 0  # by the outboxes of closed ptys
         self._rx = bytearray()
@@ -275,7 +242,7 @@ class FtEmulator(Device):
 
     def _link_up(self) -> None:
         assert self._loop is not None
-        pty = self._pty = _Pty(self.port_path)
+        pty = self._pty = PtyLink(self.port_path)
         self._out = Outbox(pty.write, MAX_BACKLOG_BYTES)
         self._up_at_ns = None
         self._loop.watch(pty.master, self._read_commands)
