@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from hilrig.control import ContactState
 from hilrig.recording.samples import EventKind, EventRecord
+from hilrig.rig.clamp_kernels import Clamp
 
 GROUPS = (("end effector", 0), ("joints", 3))  # (name, first axis) of each axis group
 
@@ -57,7 +58,8 @@ class EventDetector:
             return
         self._clamp = flags
         if flags:
-            self._emit(EventRecord(t_ns, EventKind.FAULT, "safety", f"clamp engaged: {flags:#x}"))
+            detail = f"clamp engaged: {clamp_names(flags)}"
+            self._emit(EventRecord(t_ns, EventKind.FAULT, "safety", detail))
 
     def fault(self, source: str, detail: str, t_ns: int, *, value: float = float("nan")) -> None:
         """Any other fault, emitted as given."""
@@ -66,3 +68,18 @@ class EventDetector:
     def mark(self, source: str, detail: str, t_ns: int) -> None:
         """An operator or session mark (not a fault)."""
         self._emit(EventRecord(t_ns, EventKind.OPERATOR_MARK, source, detail))
+
+
+def clamp_names(flags: int) -> str:
+    """The safety clamp's flags as words, e.g. ``velocity, acceleration`` (docs/rig.md)."""
+    return ", ".join(CLAMP_WORDS[flag] for flag in Clamp if flags & flag)
+
+
+CLAMP_WORDS = {
+    Clamp.POSITION: "position limit",
+    Clamp.VELOCITY: "velocity limit",
+    Clamp.ACCELERATION: "acceleration limit",
+    Clamp.WORKSPACE: "workspace box",
+    Clamp.NON_FINITE: "non-finite target",
+    Clamp.HOLDING: "controlled stop",
+}
