@@ -43,12 +43,18 @@ UNITS: dict[str, tuple[str, str]] = {
 
 
 def unit(metric: str, group: AxisGroup | str) -> str:
-    """The unit of ``metric`` on an axis of ``group``; AnalysisError for an unknown metric."""
+    """The unit of ``metric`` on an axis of ``group``; AnalysisError for an unknown metric or
+    group."""
     try:
         cartesian, joint = UNITS[metric]
     except KeyError as err:
         raise AnalysisError(f"unknown metric {metric!r}; known: {', '.join(UNITS)}") from err
-    return cartesian if AxisGroup(group) is AxisGroup.CARTESIAN else joint
+    try:
+        group = AxisGroup(group)
+    except ValueError:
+        known = ", ".join(g.value for g in AxisGroup)
+        raise AnalysisError(f"unknown axis group {group!r}; known: {known}") from None
+    return cartesian if group is AxisGroup.CARTESIAN else joint
 
 
 @dataclass(frozen=True)

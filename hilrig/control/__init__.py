@@ -30,6 +30,7 @@ from hilrig.control.params import (
     Law,
     bounds,
     combine,
+    parse_law,
 )
 from hilrig.control.presets import PAPER_DT_S, PRESETS, preset
 from hilrig.control.stability import StabilityReport, stability_report
@@ -62,6 +63,7 @@ __all__ = [
     "damping_ratio",
     "gains",
     "make",
+    "parse_law",
     "preset",
     "resolve_params",
     "run_compiled",

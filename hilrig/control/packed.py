@@ -24,10 +24,11 @@ from hilrig.control.params import (
     Integrator,
     Law,
     from_mapping,
+    parse_law,
     validate,
 )
 from hilrig.control.presets import preset
-from hilrig.errors import NonFiniteForceError, ParameterError
+from hilrig.errors import NonFiniteForceError
 
 ParamsLike = str | AdmittanceParams | Mapping[str, Any]
 
@@ -67,11 +68,7 @@ class Packed:
 
     @staticmethod
     def build(law: Law | str, params: ParamsLike, axes: int, dt: float) -> Packed:
-        try:
-            law = Law(law)
-        except ValueError:
-            known = ", ".join(v.value for v in Law)
-            raise ParameterError(f"law {law!r} is not one of: {known}") from None
+        law = parse_law(law)
         resolved = resolve_params(params)
         found = validate(law, resolved, axes, dt)
         P = np.zeros((K.NP, axes))  # noqa: N806

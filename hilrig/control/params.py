@@ -12,7 +12,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 from enum import StrEnum
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from hilrig.errors import ParameterError
 
 PerAxis = float | tuple[float, ...]
+_Member = TypeVar("_Member", bound=StrEnum)
 
 
 class Law(StrEnum):
@@ -87,20 +88,22 @@ class AdmittanceParams:
         for name in _PER_AXIS:
             value = getattr(self, name)
             if isinstance(value, Sequence | np.ndarray) and not isinstance(value, str):
-                object.__setattr__(self, name, tuple(float(v) for v in value))
+                try:
+                    object.__setattr__(self, name, tuple(float(v) for v in value))
+                except (TypeError, ValueError):
+                    raise ParameterError(f"{name} = {value!r} must be numbers") from None
         for name, enum in (
             ("chi", ChiReading),
             ("beta_reading", BetaReading),
             ("integrator", Integrator),
         ):
             value = getattr(self, name)
-            try:
-                object.__setattr__(self, name, enum(value))
-            except ValueError:
-                known = ", ".join(e.value for e in enum)
-                raise ParameterError(f"{name} = {value!r} is not one of: {known}") from None
+            object.__setattr__(self, name, _member(enum, value, f"{name} = {value!r}"))
         if self.groups is not None:
-            object.__setattr__(self, "groups", tuple(int(g) for g in self.groups))
+            try:
+                object.__setattr__(self, "groups", tuple(int(g) for g in self.groups))
+            except (TypeError, ValueError):
+                raise ParameterError(f"groups = {self.groups!r} must be integers") from None
 
     def with_(self, **overrides: Any) -> AdmittanceParams:
         """A copy with some fields replaced (unknown names raise ParameterError)."""
@@ -143,6 +146,19 @@ def _check_names(values: Mapping[str, Any]) -> None:
     unknown = sorted(set(values) - set(FIELD_NAMES))
     if unknown:
         raise ParameterError(f"unknown parameter {unknown[0]!r}; known: {', '.join(FIELD_NAMES)}")
+
+
+def parse_law(value: Law | str) -> Law:
+    """``value`` as a Law; ParameterError naming the laws otherwise."""
+    return _member(Law, value, f"law {value!r}")
+
+
+def _member(enum: type[_Member], value: Any, what: str) -> _Member:
+    try:
+        return enum(value)
+    except ValueError:
+        known = ", ".join(e.value for e in enum)
+        raise ParameterError(f"{what} is not one of: {known}") from None
 
 
 def from_mapping(values: Mapping[str, Any], base: AdmittanceParams | None) -> AdmittanceParams:
@@ -226,6 +242,8 @@ def validate(law: Law, params: AdmittanceParams, axes: int, dt: float) -> AxisBo
     """
     if not (math.isfinite(dt) and dt > 0):
         raise ParameterError(f"dt = {dt!r} s must be finite and > 0")
+    if axes < 1:
+        raise ParameterError(f"axes = {axes} must be >= 1")
     declared = params.axes()
     if declared is not None and declared != axes:
         raise ParameterError(f"params are given for {declared} axes but the input has {axes}")

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hilrig.control.packed import ParamsLike, resolve_params
-from hilrig.control.params import Law, validate
+from hilrig.control.params import Law, parse_law, validate
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,7 @@ class StabilityReport:
 def stability_report(law: Law | str, params: ParamsLike, axes: int, dt: float) -> StabilityReport:
     """Validate (raising ParameterError if unstable) and report the law's stability ranges."""
     resolved = resolve_params(params)
-    found = validate(Law(law), resolved, axes, dt)
+    found = validate(parse_law(law), resolved, axes, dt)
     m = resolved.per_axis("m", axes)
     # zeta = b/(2*sqrt(m*k)) is smallest at (b_min, k_max) and largest at (b_max, k_min).
     return StabilityReport(

@@ -32,7 +32,15 @@ from typing import Any
 
 import numpy as np
 
-from hilrig.control import AdmittanceController, Law, ParamsLike, combine, make, resolve_params
+from hilrig.control import (
+    AdmittanceController,
+    Law,
+    ParamsLike,
+    combine,
+    make,
+    parse_law,
+    resolve_params,
+)
 from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.drivers.joint_targets.wire import Mode
 from hilrig.errors import HilrigError
@@ -74,7 +82,7 @@ class LoopConfig:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.rate_hz) and 1.0 <= self.rate_hz <= 10_000.0):
             raise HilrigError(f"loop rate {self.rate_hz} Hz is not within 1..10000 Hz")
-        object.__setattr__(self, "law", Law(self.law))
+        object.__setattr__(self, "law", parse_law(self.law))
 
     @property
     def period_ns(self) -> int:

@@ -221,3 +221,10 @@ def test_bad_recovery_settings_are_refused(field: str) -> None:
     with pytest.raises(AnalysisError) as err:
         MetricsConfig(**{field: float("nan")})
     assert str(err.value) == f"{field} must be finite and >= 0, got nan"
+
+
+def test_units_of_unknown_metrics_and_groups_are_refused() -> None:
+    assert unit("impulse", "joint") == "N*m*s"
+    with pytest.raises(AnalysisError) as err:
+        unit("impulse", "wrist")
+    assert str(err.value) == "unknown axis group 'wrist'; known: cartesian, joint"

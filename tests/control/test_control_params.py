@@ -106,6 +106,25 @@ def test_dt_must_be_positive() -> None:
         make("fixed", EE, axes=1, dt=0.0)
 
 
+def test_values_of_the_wrong_kind_are_one_line_parameter_errors() -> None:
+    cases = [
+        (lambda: make("fixed", EE, axes=-1), "axes = -1 must be >= 1"),
+        (
+            lambda: stability_report("pid", EE, 1, 0.001),
+            "law 'pid' is not one of: fixed, variable-stiffness, adaptive",
+        ),
+        (lambda: resolve_params({"preset": EE, "m": ["a"]}), "m = ['a'] must be numbers"),
+        (
+            lambda: AdmittanceParams(m=1, b_d=1, k_d=1, groups=("a",)),
+            "groups = ('a',) must be integers",
+        ),
+    ]
+    for call, message in cases:
+        with pytest.raises(ParameterError) as err:
+            call()
+        assert str(err.value) == message
+
+
 @pytest.mark.parametrize("bad", [float("nan"), float("inf"), -float("inf")])
 def test_non_finite_force_is_refused_and_never_integrated(bad: float) -> None:
     force = np.zeros((10, 3))
