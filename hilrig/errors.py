@@ -60,3 +60,7 @@ class ReplayError(HilrigError):
 
 class ViewError(HilrigError):
     """A view cannot be built or shown: unusable input, bad display options, no viewer."""
+
+
+class OutputError(HilrigError):
+    """An output cannot be written as asked: it exists, or its folder is missing or read-only."""
