@@ -21,8 +21,14 @@ from hilrig.recording.mcap_records import MAGIC, RECORD_HEADER, Channel, Op, Sch
 from hilrig.recording.session import utc_iso
 
 _FOOTER_SIZE = RECORD_HEADER.size + 20
-#: What reading a damaged or cut record raises (the cursor's own IndexError included).
-_DAMAGED = (IndexError, struct.error, UnicodeDecodeError)
+
+
+class _DamagedRecordError(RecordingError):
+    """A record ends before its fields do; caught in this module, turned into what it means."""
+
+
+#: What reading a damaged or cut record raises.
+_DAMAGED = (_DamagedRecordError, struct.error, UnicodeDecodeError)
 
 
 @dataclass(frozen=True)
@@ -99,7 +105,7 @@ class FileIndex:
 
 
 class _Cursor:
-    """Reads little-endian fields from a buffer, raising IndexError past ``end``."""
+    """Reads little-endian fields from a buffer, raising _DamagedRecordError past ``end``."""
 
     def __init__(self, buf: mmap.mmap | bytes, pos: int, end: int) -> None:
         self.buf, self.pos, self.end = buf, pos, end
@@ -107,7 +113,7 @@ class _Cursor:
     def take(self, fmt: str) -> tuple[int, ...]:
         size = struct.calcsize(fmt)
         if self.pos + size > self.end:
-            raise IndexError("record ends early")
+            raise _DamagedRecordError("record ends early")
         values = struct.unpack_from(fmt, self.buf, self.pos)
         self.pos += size
         return values
@@ -117,7 +123,7 @@ class _Cursor:
 
     def raw(self, size: int) -> bytes:
         if size < 0 or self.pos + size > self.end:
-            raise IndexError("record ends early")
+            raise _DamagedRecordError("record ends early")
         data = bytes(self.buf[self.pos : self.pos + size])
         self.pos += size
         return data
@@ -156,7 +162,7 @@ def parse_chunk_head(c: _Cursor, offset: int, length: int) -> ChunkInfo:
     compression = c.string()
     compressed_size = c.u("<Q")
     if c.pos + compressed_size > c.end:
-        raise IndexError("chunk data ends early")
+        raise _DamagedRecordError("chunk data ends early")
     return ChunkInfo(offset, length, start, end, compression, c.pos, compressed_size, size, crc, {})
 
 
@@ -189,7 +195,7 @@ def _header(p: Path, mm: mmap.mmap) -> tuple[str, str, int]:
         opcode, length = RECORD_HEADER.unpack_from(mm, len(MAGIC))
         c = _Cursor(mm, len(MAGIC) + RECORD_HEADER.size, len(MAGIC) + RECORD_HEADER.size + length)
         if opcode != Op.HEADER or c.end > len(mm):
-            raise IndexError
+            raise _DamagedRecordError("not a header record")
         return c.string(), c.string(), c.end
     except _DAMAGED as err:
         raise RecordingError(f"{p}: MCAP header record is missing or damaged") from err
