@@ -34,7 +34,7 @@ class LinkError(DriverError):
 
 
 class ProtocolError(DriverError):
-    """A device sent bytes that do not follow its protocol."""
+    """Bytes on a device link (either way) that do not follow the device's protocol."""
 
 
 class ModbusExceptionError(DriverError):
