@@ -1,12 +1,11 @@
 """``hilrig`` command line: thin commands that parse options and call library functions.
 
+Importing it is light (``hilrig --help`` answers at once): each command imports what it needs
+when it runs, and the signatures take their types from light modules (:mod:`.options`).
 Expected failures (HilrigError) print one line to stderr and exit 2; nothing else is caught.
 """
 
 import sys
-
-from rich.console import Console
-from rich.text import Text
 
 from hilrig.cli import (  # noqa: F401  (register their commands)
     analyze,
@@ -19,6 +18,7 @@ from hilrig.cli import (  # noqa: F401  (register their commands)
     view,
 )
 from hilrig.cli.app import app
+from hilrig.cli.errors import ERROR_EXIT, print_error
 from hilrig.errors import HilrigError
 
 __all__ = ["app", "main"]
@@ -29,7 +29,5 @@ def main() -> None:
     try:
         app()
     except HilrigError as err:
-        # one line whatever the width, and the message is text, never rich markup
-        line = Text("error: ", style="bold red").append(str(err))
-        Console(stderr=True, soft_wrap=True).print(line, highlight=False)
-        sys.exit(2)
+        print_error(err)
+        sys.exit(ERROR_EXIT)

@@ -3,32 +3,17 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import pandas as pd
 import typer
-from rich.console import Console
-from rich.markup import escape
 
-from hilrig.analysis import (
-    ACROSS_SOURCES,
-    Analysis,
-    EventConfig,
-    SourceKind,
-    analyze,
-    comparison,
-    comparison_table,
-    dataset_frame,
-    default_baseline,
-    events_table,
-    load_sources,
-    runs_of,
-    values,
-    write_dataset,
-    write_table,
-)
 from hilrig.cli.app import app
-from hilrig.errors import AnalysisError
+
+if TYPE_CHECKING:
+    import pandas as pd
+    from rich.console import Console
+
+    from hilrig.analysis import Analysis
 
 
 @app.command("analyze")
@@ -64,6 +49,25 @@ def analyze_command(
     ] = 0.05,
 ) -> None:
     """Find collisions in the force channels, measure every run on every axis, compare runs."""
+    from rich.console import Console
+
+    from hilrig.analysis import (
+        ACROSS_SOURCES,
+        EventConfig,
+        SourceKind,
+        analyze,
+        comparison,
+        comparison_table,
+        dataset_frame,
+        default_baseline,
+        load_sources,
+        runs_of,
+        values,
+        write_dataset,
+        write_table,
+    )
+    from hilrig.errors import AnalysisError
+
     config = EventConfig(delta=delta, debounce_s=debounce_s, merge_gap_s=merge_gap_s)
     analyses = [analyze(s, events=config) for s in load_sources(paths, exclude=out)]
     runs = runs_of(values(analyses))
@@ -97,6 +101,18 @@ def print_source(console: Console, analysis: Analysis, baseline: str, delta: flo
     The printed table keeps the axes that took part in an event (their own |force| above
     ``delta``); the returned one has every axis.
     """
+    import pandas as pd
+    from rich.markup import escape
+
+    from hilrig.analysis import (
+        comparison,
+        comparison_table,
+        default_baseline,
+        events_table,
+        runs_of,
+        values,
+    )
+
     console.print(f"[bold]{escape(analysis.source.name)}[/]")
     console.print(events_table(analysis))
     mine = values([analysis])

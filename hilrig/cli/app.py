@@ -1,11 +1,29 @@
 """The typer application every ``hilrig`` command registers on."""
 
 import typer
+from typer._click import Context
+from typer.core import TyperGroup, TyperOption
 
 from hilrig import __version__
 
+
+class Group(TyperGroup):
+    """A typer group whose ``--help``, when not given, reads False rather than None.
+
+    Typer coerces every non-bool parameter value through a pydantic adapter built on first use;
+    a group's unset ``--help`` (None) made ``hilrig COMMAND --help`` load pydantic for it.
+    """
+
+    def get_help_option(self, ctx: Context) -> TyperOption | None:
+        option = super().get_help_option(ctx)
+        if option is not None:
+            option.default = False
+        return option
+
+
 app = typer.Typer(
     name="hilrig",
+    cls=Group,
     help="Hardware-in-the-loop experiments on collaborative-robot collision response.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,

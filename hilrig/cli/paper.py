@@ -4,11 +4,8 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
 
 from hilrig.cli.app import app
-from hilrig.paper.report import rich_table
-from hilrig.paper.reproduce import reproduce
 
 DEFAULT_OUT = Path("build/paper")
 
@@ -20,6 +17,11 @@ def paper(
     ] = DEFAULT_OUT,
 ) -> None:
     """Run the paper's simulations (sections 2.1 and 3.4) and compare with its numbers."""
+    from rich.console import Console
+
+    from hilrig.paper.report import rich_table
+    from hilrig.paper.reproduce import reproduce
+
     reproduction = reproduce(out)
     console = Console()
     for section in reproduction.sections:

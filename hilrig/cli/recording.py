@@ -3,44 +3,20 @@
 from __future__ import annotations
 
 import enum
-import functools
-from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, ParamSpec, TypeVar
+from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-from rich.table import Table
-from rich.text import Text
 
 from hilrig.cli.app import app
-from hilrig.errors import HilrigError
-from hilrig.recording import export as export_recording
-from hilrig.recording import inspect, recover
-from hilrig.recording.info import FileInfo
-from hilrig.recording.session import utc_iso
+from hilrig.cli.errors import one_line_errors
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from hilrig.recording.info import FileInfo
 
 _FILE = Annotated[Path, typer.Argument(help="An MCAP recording.", show_default=False)]
-
-
-P = ParamSpec("P")
-R = TypeVar("R")
-
-
-def _one_line_errors(command: Callable[P, R]) -> Callable[P, R]:
-    """Print an expected failure as exactly one line (never wrapped, no markup) and exit 2."""
-
-    @functools.wraps(command)
-    def run(*args: P.args, **kwargs: P.kwargs) -> R:
-        try:
-            return command(*args, **kwargs)
-        except HilrigError as err:
-            line = Text.assemble(("error: ", "bold red"), str(err))
-            Console(stderr=True, soft_wrap=True).print(line)
-            raise typer.Exit(2) from err
-
-    return run
 
 
 class ExportFormat(enum.StrEnum):
@@ -49,12 +25,14 @@ class ExportFormat(enum.StrEnum):
 
 
 def _problems(console: Console, problems: tuple[str, ...]) -> None:
+    from rich.text import Text
+
     for line in problems:
         console.print(Text.assemble(("warning: ", "yellow"), line), soft_wrap=True)
 
 
 @app.command("info")
-@_one_line_errors
+@one_line_errors
 def info_command(
     file: _FILE,
     check: Annotated[
@@ -62,6 +40,10 @@ def info_command(
     ] = False,
 ) -> None:
     """Session metadata, topics (type, count, rate, span, gaps) and whether the file is whole."""
+    from rich.console import Console
+
+    from hilrig.recording import inspect
+
     described = inspect(file, check=check)
     console = Console(highlight=False)
     if not console.is_terminal:  # keep full topic and type names when piped
@@ -71,6 +53,10 @@ def info_command(
 
 
 def _print_info(console: Console, info: FileInfo) -> None:
+    from rich.table import Table
+
+    from hilrig.recording.session import utc_iso
+
     if info.complete:
         state = "[green]complete[/]"
     elif info.truncated:
@@ -107,12 +93,16 @@ def _print_info(console: Console, info: FileInfo) -> None:
 
 
 @app.command("recover")
-@_one_line_errors
+@one_line_errors
 def recover_command(
     file: _FILE,
     out: Annotated[Path, typer.Option("-o", "--out", help="Where to write the repaired file.")],
 ) -> None:
     """Turn a truncated or unfinished recording into a valid one; report what was lost."""
+    from rich.console import Console
+
+    from hilrig.recording import recover
+
     result = recover(file, out)
     console = Console(highlight=False)
     console.print(f"wrote {result.output}")
@@ -120,7 +110,7 @@ def recover_command(
 
 
 @app.command("export")
-@_one_line_errors
+@one_line_errors
 def export_command(
     file: _FILE,
     out: Annotated[Path, typer.Option("--out", help="Directory for one table per topic.")],
@@ -129,6 +119,17 @@ def export_command(
     ] = ExportFormat.PARQUET,
 ) -> None:
     """Write one Parquet or CSV table per topic (and metadata.json) into --out."""
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+
+    from hilrig.recording import export as export_recording
+
     console = Console(highlight=False)
     columns = (
         TextColumn("reading chunks"),

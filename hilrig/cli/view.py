@@ -2,37 +2,23 @@
 
 from __future__ import annotations
 
-import signal
-import threading
 from pathlib import Path
-from types import FrameType
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
-from rich.text import Text
 
 from hilrig.cli.app import app
-from hilrig.cli.recording import _one_line_errors
-from hilrig.errors import ViewError
-from hilrig.replay import parse_specs
-from hilrig.viz import (
-    DEFAULT_MAX_POINTS,
-    DEFAULT_MAX_POSES,
-    Sink,
-    SinkKind,
-    ViewReport,
-    layout,
-    open_stream,
-    recording_id,
-    scene_from_session,
-    show_scene,
-)
-from hilrig.viz.sinks import GRPC_PORT, WEB_PORT, check_rrd_path, grpc_address
+from hilrig.cli.errors import one_line_errors
+from hilrig.cli.options import DEFAULT_MAX_POINTS, DEFAULT_MAX_POSES, GRPC_PORT, WEB_PORT
+
+if TYPE_CHECKING:
+    from rich.console import Console
+
+    from hilrig.viz import Sink, ViewReport
 
 
 @app.command("view")
-@_one_line_errors
+@one_line_errors
 def view_command(
     file: Annotated[Path, typer.Argument(help="A recorded session (.mcap).", show_default=False)],
     controller: Annotated[
@@ -94,6 +80,13 @@ def view_command(
 ) -> None:
     """Show FILE (robot, end trajectories, forces, offsets, b, k, zeta, contact, events) and
     its replays through --controller runs, one colour per controller in every view."""
+    from rich.console import Console
+    from rich.text import Text
+
+    from hilrig.errors import ViewError
+    from hilrig.replay import parse_specs
+    from hilrig.viz import layout, open_stream, recording_id, scene_from_session, show_scene
+
     sink = _sink(save, web, connect, port, web_port)
     console = Console(highlight=False, soft_wrap=True)
     specs = parse_specs(controller or [], setting or [], []) if controller else []
@@ -121,6 +114,9 @@ def view_command(
 
 def _sink(save: Path | None, web: bool, connect: str | None, port: int, web_port: int) -> Sink:
     """The one destination asked for; checked before anything is read."""
+    from hilrig.errors import ViewError
+    from hilrig.viz.sinks import Sink, SinkKind, check_rrd_path, grpc_address
+
     chosen = [name for name, on in (("--save", save), ("--web", web), ("--connect", connect)) if on]
     if len(chosen) > 1:
         raise ViewError(f"{' and '.join(chosen)}: choose one destination")
@@ -137,6 +133,8 @@ def _sink(save: Path | None, web: bool, connect: str | None, port: int, web_port
 
 
 def _print_report(console: Console, report: ViewReport, source: str) -> None:
+    from rich.text import Text
+
     console.print(f"{source}: {len(report.runs)} run(s)")
     for label, color in report.runs:
         console.print(Text.assemble(("  ■ ", color), label))
@@ -150,6 +148,10 @@ def _print_report(console: Console, report: ViewReport, source: str) -> None:
 
 def _wait_for_interrupt() -> None:
     """Block until Ctrl-C or SIGTERM."""
+    import signal
+    import threading
+    from types import FrameType
+
     done = threading.Event()
 
     def stop(signum: int, frame: FrameType | None) -> None:
