@@ -1,40 +1,47 @@
-"""``hilrig demo``: the main job on the emulated rig, start to finish."""
+"""``hilrig demo``: the main job on the emulated rig, start to finish.
 
-import threading
+It joins every application (paper, rig, replay, analysis, viewer), so it lives at the top.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
-from rich.console import Console
-from rich.table import Table
 
-from hilrig.analysis import DEFAULT_EVENTS, analyze, load_replay
-from hilrig.cli.analyze import print_source
 from hilrig.cli.app import app
-from hilrig.cli.record import print_result
-from hilrig.paper.report import rich_table
-from hilrig.paper.reproduce import reproduce
-from hilrig.recording import load
-from hilrig.replay import parse_specs, run, write_parquet
-from hilrig.rig.loop import LoopConfig
-from hilrig.rig.records import AXIS_NAMES
-from hilrig.rig.session import SessionConfig, record_session
-from hilrig.viz import save_rrd, scene_from_session
 
-DEMO_SUBJECT = "D001"  # a pseudonym reserved for demonstrations
-SESSIONS = (  # (scenario, trajectory, seconds): each collision ends ~2 s before the session
-    ("paper-end-effector", "circle", 8.0),
-    ("paper-body", "square", 7.5),
+if TYPE_CHECKING:
+    from rich.console import Console
+    from rich.table import Table
+
+    from hilrig.rig import SessionResult
+
+#: A pseudonym reserved for demonstrations.
+DEMO_SUBJECT = "D001"
+#: The laws each session is replayed through, compared against the baseline.
+LAWS = ("adaptive", "variable-stiffness", "fixed")
+BASELINE = "fixed"
+#: A session's outputs, by suffix of its scenario's name; a new demo replaces them.
+OUTPUTS = (".mcap", "-replay.parquet", ".rrd")
+
+
+@dataclass(frozen=True)
+class DemoSession:
+    """One recorded collision: the volunteer scenario, the task, how long (s)."""
+
+    scenario: str
+    trajectory: str
+    duration_s: float
+
+
+#: Each collision ends about 2 s before its session.
+SESSIONS = (
+    DemoSession("paper-end-effector", "circle", 8.0),
+    DemoSession("paper-body", "square", 7.5),
 )
-LAWS = ("adaptive", "variable-stiffness", "fixed")  # compared, against fixed
-OUTPUTS = (".mcap", "-replay.parquet", ".rrd")  # per session, replaced by a new demo
-
-
-def peak_offsets(path: Path) -> list[float]:
-    """The largest |offset| per axis (AXIS_NAMES order) recorded on /controller/state, m or rad."""
-    state = load(path, topics=["/controller/state"])["/controller/state"]
-    return [float(np.abs(state[f"offset_{i}"]).max()) for i in range(len(AXIS_NAMES))]
 
 
 @app.command()
@@ -45,33 +52,86 @@ def demo(
 ) -> None:
     """The paper's simulations, then its end-effector and body collisions on the emulated rig,
     each replayed through the three laws, compared, and saved as a Rerun view (.rrd)."""
+    from rich.console import Console
+
+    from hilrig.cli.session_output import print_result
+    from hilrig.paper.report import rich_table
+    from hilrig.paper.reproduce import reproduce
+
     console = Console(soft_wrap=True)
     if not console.is_terminal:  # keep whole table rows when piped
         console = Console(soft_wrap=True, width=160)
-    for scenario, _, _ in SESSIONS:  # a new demo replaces its own earlier outputs
+    for session in SESSIONS:
         for suffix in OUTPUTS:
-            (out / f"{scenario}{suffix}").unlink(missing_ok=True)
+            (out / f"{session.scenario}{suffix}").unlink(missing_ok=True)
     reproduction = reproduce(out / "paper")
     console.print(rich_table(reproduction.sections[0]))
     console.print(f"paper tables and figures in {out / 'paper'}\n", highlight=False)
     peaks: dict[str, list[float]] = {}
-    for scenario, trajectory, seconds in SESSIONS:
-        console.print(f"[bold]session {scenario}[/] ({trajectory} task, {seconds:g} s)")
-        result = record_session(
-            SessionConfig(
-                out=out / f"{scenario}.mcap",
-                subject_id=DEMO_SUBJECT,
-                scenario=scenario,
-                trajectory=trajectory,
-                duration_s=seconds,
-                loop=LoopConfig(),
-                session_id=f"demo-{scenario}",
-            ),
-            stop=threading.Event(),
-        )
+    for session in SESSIONS:
+        about = f"({session.trajectory} task, {session.duration_s:g} s)"
+        console.print(f"[bold]session {session.scenario}[/] {about}")
+        result = record(session, out)
         print_result(console, result)
-        peaks[scenario] = peak_offsets(result.path)
-        compare_and_view(console, result.path, out / f"{scenario}-replay.parquet")
+        peaks[session.scenario] = peak_offsets(result.path)
+        compare_and_view(console, result.path)
+    console.print(peaks_table(peaks))
+
+
+def record(session: DemoSession, out: Path) -> SessionResult:
+    """``session`` recorded on the emulated rig to ``out/<scenario>.mcap``."""
+    import threading
+
+    from hilrig.rig import LoopConfig, SessionConfig, record_session
+
+    config = SessionConfig(
+        out=out / f"{session.scenario}.mcap",
+        subject_id=DEMO_SUBJECT,
+        scenario=session.scenario,
+        trajectory=session.trajectory,
+        duration_s=session.duration_s,
+        loop=LoopConfig(),
+        session_id=f"demo-{session.scenario}",
+    )
+    return record_session(config, stop=threading.Event())
+
+
+def compare_and_view(console: Console, session: Path) -> None:
+    """Replay ``session`` through LAWS, print their comparison against BASELINE, save the
+    results beside it as ``<stem>-replay.parquet`` and its view as ``<stem>.rrd``."""
+    from hilrig.analysis import DEFAULT_EVENTS, analyze, load_replay
+    from hilrig.cli.analyze import print_source
+    from hilrig.replay import parse_specs, run, write_parquet
+    from hilrig.viz import save_rrd, scene_from_session
+
+    specs = parse_specs(list(LAWS))
+    replayed = session.with_name(f"{session.stem}-replay.parquet")
+    write_parquet(run(session, specs), replayed)
+    print_source(console, analyze(load_replay(replayed)), BASELINE, DEFAULT_EVENTS.delta)
+    view = session.with_suffix(".rrd")
+    save_rrd(scene_from_session(session, specs), view)
+    console.print(
+        f"replays in {replayed}; view: rerun {view}  (or: hilrig view {session} -c ...)\n"
+    )
+
+
+def peak_offsets(path: Path) -> list[float]:
+    """The largest |offset| per axis (AXIS_NAMES order) recorded on /controller/state, m or rad."""
+    import numpy as np
+
+    from hilrig.recording import load
+    from hilrig.rig import AXIS_NAMES
+
+    state = load(path, topics=["/controller/state"])["/controller/state"]
+    return [float(np.abs(state[f"offset_{i}"]).max()) for i in range(len(AXIS_NAMES))]
+
+
+def peaks_table(peaks: dict[str, list[float]]) -> Table:
+    """The largest offset per axis (rows) of each session (columns), mm and mrad."""
+    from rich.table import Table
+
+    from hilrig.rig import AXIS_NAMES
+
     table = Table(title="recorded sessions: largest offset per axis")
     table.add_column("axis")
     for scenario in peaks:
@@ -79,17 +139,4 @@ def demo(
     for i, name in enumerate(AXIS_NAMES):
         unit = "mm" if i < 3 else "mrad"
         table.add_row(f"{name} ({unit})", *(f"{1000 * p[i]:.1f}" for p in peaks.values()))
-    console.print(table)
-
-
-def compare_and_view(console: Console, session: Path, replayed: Path) -> None:
-    """Replay ``session`` through the three laws, print their comparison against fixed, save
-    the results beside it and its view as ``<session>.rrd``."""
-    specs = parse_specs(list(LAWS))
-    write_parquet(run(session, specs), replayed)
-    print_source(console, analyze(load_replay(replayed)), "fixed", DEFAULT_EVENTS.delta)
-    view = session.with_suffix(".rrd")
-    save_rrd(scene_from_session(session, specs), view)
-    console.print(
-        f"replays in {replayed}; view: rerun {view}  (or: hilrig view {session} -c ...)\n"
-    )
+    return table

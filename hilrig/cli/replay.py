@@ -1,46 +1,31 @@
-"""``hilrig replay``: recorded force traces through any controllers offline, or ``--verify``."""
+"""``hilrig replay``: recorded force traces through any controllers offline, ``--verify``, or
+into a live rig (``--rig``)."""
 
 from __future__ import annotations
 
-import threading
-import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TaskID,
-    TextColumn,
-    TimeRemainingColumn,
-)
-from rich.table import Table
-from rich.text import Text
 
 from hilrig.cli.app import app
-from hilrig.cli.record import endpoints_from_config, print_result, read_config
-from hilrig.cli.recording import _one_line_errors
-from hilrig.errors import ReplayError
-from hilrig.replay import ForceTrace, Run, load_trace, parse_specs, peak_offsets, replay
-from hilrig.replay.outputs import MCAP_SUFFIXES, PARQUET_SUFFIXES, write_mcap, write_parquet
-from hilrig.replay.verify import summary_lines, verify
-from hilrig.rig import LoopConfig, RigKind, SessionConfig, VirtualInput, record_session
+from hilrig.cli.errors import one_line_errors
+from hilrig.rig.kinds import RigKind
+
+if TYPE_CHECKING:
+    from rich.console import Console
+    from rich.table import Table
+
+    from hilrig.replay.job import Replayed
 
 #: Inputs at least this large get a progress bar.
 LONG_INPUT_BYTES = 16 << 20
-PHASES = {"load": "reading chunks", "replay": "replaying ticks", "write": "writing ticks"}
-REDRAW_S = 0.1
 #: Exit status of a failed --verify (2 is an error that stopped the command).
 VERIFY_FAILED = 1
 
 
 @app.command("replay")
-@_one_line_errors
+@one_line_errors
 def replay_command(
     file: Annotated[
         Path,
@@ -62,7 +47,7 @@ def replay_command(
         list[str] | None,
         typer.Option(
             "--set",
-            help="NAME.[cartesian.|joint.]PARAM=VALUE, e.g. adaptive.a1=10 (repeatable).",
+            help="NAME.\\[cartesian.|joint.]PARAM=VALUE, e.g. adaptive.a1=10 (repeatable).",
         ),
     ] = None,
     sweep: Annotated[
@@ -110,10 +95,14 @@ def replay_command(
         float | None, typer.Option(help="HIL replay: this much of FILE, s (default: the rest).")
     ] = None,
     config: Annotated[
-        Path | None, typer.Option(help="HIL replay on --rig aubo: TOML with [endpoints].")
+        Path | None, typer.Option(help="HIL replay on --rig aubo: TOML with \\[endpoints].")
     ] = None,
 ) -> None:
     """Replay FILE's force trace through controllers and sweeps; summarise the peak offsets."""
+    from rich.console import Console
+
+    from hilrig.errors import ReplayError
+
     console = Console(highlight=False)
     if not console.is_terminal:  # keep whole run names when piped
         console = Console(highlight=False, width=200)
@@ -125,116 +114,41 @@ def replay_command(
                 "--verify replays the recorded controller: it takes no --controller, --set, "
                 "--sweep, --out or --resample"
             )
-        with _progress(errors, enabled=long_input) as progress:
-            report = verify(file, progress=progress)
-        for line in summary_lines(report):
-            console.print(line, soft_wrap=True)
-        if not report.ok:
-            raise typer.Exit(VERIFY_FAILED)
-        return
-    if rig is not None:
-        if controller or setting or sweep or check or resample or jobs:
+        _verify(file, console, errors, long_input=long_input)
+    elif rig is not None:
+        if controller or setting or sweep or resample or jobs:
             raise ReplayError(
                 "--rig replays into the live loop's controller: it takes no --controller, --set, "
                 "--sweep, --verify, --resample or --jobs"
             )
-        _replay_into_rig(file, rig, subject, rate, start, duration, config, out or [])
-        return
-    specs = parse_specs(controller or [], setting or [], sweep or [])
-    outputs = _outputs(out or [])
-    with _progress(errors, enabled=long_input) as progress:
-        trace = load_trace(
+        _into_rig(file, rig, subject, rate, start, duration, config, out or [])
+    else:
+        _offline(
             file,
+            (controller or [], setting or [], sweep or []),
+            out or [],
+            console,
+            errors,
             resample=resample,
-            progress=None if progress is None else lambda d, t: progress("load", d, t),
+            jobs=jobs,
+            long_input=long_input,
         )
-        runs = [Run.from_spec(spec, trace.axis_names) for spec in specs]
-        table = replay(trace, runs, jobs=jobs, progress=progress)
-        for note in trace.notes:
-            errors.print(Text.assemble(("note: ", "yellow"), note))
-        for path in outputs:
-            if path.suffix.lower() in PARQUET_SUFFIXES:
-                write_parquet(table, path)
-            else:
-                write_mcap(
-                    table,
-                    path,
-                    session=trace.session,
-                    t0_ns=trace.t0_ns,
-                    progress=None if progress is None else lambda d, t: progress("write", d, t),
-                )
-    for path in outputs:
-        console.print(f"wrote {path}")
-    console.print(_summary(trace, table_runs=runs, peaks=peak_offsets(table, trace.axis_names)))
 
 
-def _outputs(paths: list[Path]) -> list[Path]:
-    """Checked before any work: a known suffix, no existing file, an existing directory."""
-    for path in paths:
-        if path.suffix.lower() not in PARQUET_SUFFIXES + MCAP_SUFFIXES:
-            known = ", ".join(PARQUET_SUFFIXES + MCAP_SUFFIXES)
-            raise ReplayError(f"--out {path}: unknown output type; known: {known}")
-        if path.exists():
-            raise ReplayError(f"--out {path}: already exists; refusing to overwrite it")
-        if not path.parent.is_dir():
-            raise ReplayError(f"--out {path}: directory {path.parent} does not exist")
-    if len(set(paths)) != len(paths):
-        raise ReplayError("--out: the same file is given twice")
-    return paths
+def _verify(file: Path, console: Console, errors: Console, *, long_input: bool) -> None:
+    """--verify: the recorded controller replayed and compared; exit 1 if anything differs."""
+    from hilrig.cli.progress import phase_bar
+    from hilrig.replay.verify import summary_lines, verify
+
+    with phase_bar(errors, enabled=long_input) as progress:
+        report = verify(file, progress=progress)
+    for line in summary_lines(report):
+        console.print(line, soft_wrap=True)
+    if not report.ok:
+        raise typer.Exit(VERIFY_FAILED)
 
 
-@contextmanager
-def _progress(console: Console, *, enabled: bool) -> Iterator[_Phases | None]:
-    """A transient progress bar on stderr, one task per phase (load, replay, write), redrawn
-    by the callbacks rather than by rich's refresh thread: the engine may fork a process pool,
-    and a fork must not happen while another thread holds the terminal's lock."""
-    if not enabled:
-        yield None
-        return
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn())
-    with Progress(
-        *columns, TimeRemainingColumn(), console=console, transient=True, auto_refresh=False
-    ) as bar:
-        yield _Phases(bar)
-
-
-class _Phases:
-    """``progress(phase, done, total)`` onto one rich task per phase."""
-
-    def __init__(self, bar: Progress) -> None:
-        self.bar = bar
-        self.tasks: dict[str, TaskID] = {}
-        self.drawn = 0.0
-
-    def __call__(self, phase: str, done: int, total: int) -> None:
-        task = self.tasks.get(phase)
-        if task is None:
-            task = self.tasks[phase] = self.bar.add_task(PHASES.get(phase, phase), total=total)
-        now = time.monotonic()
-        redraw = done >= total or now - self.drawn >= REDRAW_S
-        self.bar.update(task, completed=done, total=total, refresh=redraw)
-        if redraw:
-            self.drawn = now
-
-
-def _summary(
-    trace: ForceTrace, *, table_runs: list[Run], peaks: dict[str, dict[str, float]]
-) -> Table:
-    """Per run, the largest |offset| per axis: mm for x, y, z and mrad for joints."""
-    table = Table(
-        title=f"max |offset| (x y z: mm, joints: mrad) over {trace.duration_s:.3f} s of "
-        f"{trace.source}",
-        title_justify="left",
-    )
-    table.add_column("run", overflow="fold")
-    for axis in trace.axis_names:
-        table.add_column(axis.replace("joint", "j"), justify="right")
-    for run in table_runs:
-        table.add_row(run.name, *(f"{1000 * peaks[run.name][a]:.2f}" for a in trace.axis_names))
-    return table
-
-
-def _replay_into_rig(
+def _into_rig(
     file: Path,
     rig: RigKind,
     subject: str | None,
@@ -244,7 +158,21 @@ def _replay_into_rig(
     config: Path | None,
     out: list[Path],
 ) -> None:
-    """HIL replay: FILE's trace as a virtual collision in a live session, recorded to --out."""
+    """--rig: FILE's trace as a virtual collision in a live session, recorded to --out."""
+    import threading
+
+    from rich.console import Console
+
+    from hilrig.cli.session_output import print_result
+    from hilrig.errors import ReplayError
+    from hilrig.replay import load_trace
+    from hilrig.replay.outputs import MCAP_SUFFIXES
+    from hilrig.rig import VirtualInput, record_session
+    from hilrig.rig.config_file import read_rig_file
+    from hilrig.rig.playback import playback_session
+
+    if len(out) > 1 or (out and out[0].suffix.lower() not in MCAP_SUFFIXES):
+        raise ReplayError("--rig records one new session: pass at most one --out FILE.mcap")
     trace = load_trace(file)
     virtual = VirtualInput.from_columns(
         trace.t_s, trace.columns, start_s=start_s, duration_s=duration_s
@@ -252,28 +180,64 @@ def _replay_into_rig(
     subject_id = subject or (trace.session.subject_id if trace.session is not None else None)
     if subject_id is None:
         raise ReplayError(f"{file}: no subject id in the file: pass --subject")
-    if len(out) > 1 or (out and out[0].suffix.lower() not in MCAP_SUFFIXES):
-        raise ReplayError("--rig records one new session: pass at most one --out FILE.mcap")
-    path = (
-        out[0]
-        if out
-        else Path("recordings") / f"{subject_id}-replay-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
-    )
-    path.parent.mkdir(parents=True, exist_ok=True)
-    settings = read_config(config) if config is not None else {}
-    session = SessionConfig(
-        out=path,
-        subject_id=subject_id,
-        scenario="none",
+    session = playback_session(
+        virtual,
+        subject_id,
+        source=f"{file} from {start_s} s for {virtual.duration_s:.3f} s",
         rig=rig,
-        endpoints=endpoints_from_config(config, settings) if config is not None else None,
-        duration_s=virtual.delay_s + virtual.duration_s + 2.0,  # and 2 s to recover
-        trajectory="hold",
-        loop=LoopConfig(rate_hz=rate_hz),
-        virtual=virtual,
-        virtual_source=f"{file} from {start_s} s for {virtual.duration_s:.3f} s",
+        rate_hz=rate_hz,
+        endpoints=read_rig_file(config).endpoints if config is not None else None,
+        out=out[0] if out else None,
     )
     result = record_session(session, stop=threading.Event())
     print_result(Console(soft_wrap=True, highlight=False), result)
     if result.recorder_error:
         raise ReplayError(f"the recording is incomplete: {result.recorder_error}")
+
+
+def _offline(
+    file: Path,
+    spec_options: tuple[list[str], list[str], list[str]],
+    out: list[Path],
+    console: Console,
+    errors: Console,
+    *,
+    resample: bool,
+    jobs: int | None,
+    long_input: bool,
+) -> None:
+    """FILE's trace through the --controller, --set and --sweep runs, written to --out."""
+    from rich.text import Text
+
+    from hilrig.cli.progress import phase_bar
+    from hilrig.replay.job import check_outputs, replay_file, write_outputs
+    from hilrig.replay.specs import parse_specs
+
+    specs = parse_specs(*spec_options)
+    outputs = check_outputs(out)
+    with phase_bar(errors, enabled=long_input) as progress:
+        replayed = replay_file(file, specs, resample=resample, jobs=jobs, progress=progress)
+        for note in replayed.trace.notes:
+            errors.print(Text.assemble(("note: ", "yellow"), note))
+        write_outputs(replayed, outputs, progress=progress)
+    for path in outputs:
+        console.print(f"wrote {path}")
+    console.print(_summary(replayed))
+
+
+def _summary(replayed: Replayed) -> Table:
+    """Per run, the largest |offset| per axis: mm for x, y, z and mrad for joints."""
+    from rich.table import Table
+
+    trace, peaks = replayed.trace, replayed.peak_offsets()
+    table = Table(
+        title=f"max |offset| (x y z: mm, joints: mrad) over {trace.duration_s:.3f} s of "
+        f"{trace.source}",
+        title_justify="left",
+    )
+    table.add_column("run", overflow="fold")
+    for axis in trace.axis_names:
+        table.add_column(axis.replace("joint", "j"), justify="right")
+    for run in replayed.runs:
+        table.add_row(run.name, *(f"{1000 * peaks[run.name][a]:.2f}" for a in trace.axis_names))
+    return table

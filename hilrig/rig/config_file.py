@@ -1,0 +1,70 @@
+"""A session's config file (TOML) and where a new session's recording goes.
+
+    [endpoints]                       # a real rig
+    ft_wrist_port = "/dev/ttyUSB0"
+    robot_state = "host:8002"
+    modbus = "host:502"               # Modbus RTU over TCP
+    [trajectory]                      # the task: a trajectory's name and its builder's options
+    name = "waypoints"
+    points = [[1.0, 0.0, 0.02, 0.0]]  # [t_s, dx_m, dy_m, dz_m], ...
+
+Either table may be left out: the emulated rig needs no endpoints.
+"""
+
+from __future__ import annotations
+
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hilrig.emulator.rig import RigEndpoints
+from hilrig.errors import HilrigError
+
+#: Where new recordings go unless told.
+RECORDINGS = Path("recordings")
+
+
+@dataclass(frozen=True)
+class RigFile:
+    """What a config file sets: the real rig's endpoints, the trajectory and its options."""
+
+    endpoints: RigEndpoints | None = None
+    trajectory: str | None = None
+    trajectory_options: dict[str, object] = field(default_factory=dict)
+
+
+def read_rig_file(path: Path) -> RigFile:
+    """The config file at ``path``; raises HilrigError naming the file and what is wrong."""
+    try:
+        config = tomllib.loads(path.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as err:
+        raise HilrigError(f"{path}: cannot read the config ({err})") from err
+    options = dict(config.get("trajectory", {}))
+    name = options.pop("name", None)
+    return RigFile(
+        endpoints=_endpoints(path, config["endpoints"]) if "endpoints" in config else None,
+        trajectory=None if name is None else str(name),
+        trajectory_options=options,
+    )
+
+
+def _endpoints(path: Path, table: Any) -> RigEndpoints:
+    try:
+        robot_host, robot_port = str(table["robot_state"]).rsplit(":", 1)
+        modbus_host, modbus_port = str(table["modbus"]).rsplit(":", 1)
+        return RigEndpoints(
+            str(table["ft_wrist_port"]),
+            (robot_host, int(robot_port)),
+            (modbus_host, int(modbus_port)),
+        )
+    except (KeyError, ValueError, TypeError) as err:
+        raise HilrigError(f"{path}: no valid [endpoints] table ({err})") from err
+
+
+def session_path(out: Path | None, stem: str) -> Path:
+    """``out``, or ``recordings/<stem>-<local date-time>.mcap``; its folder is made."""
+    path = out or RECORDINGS / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
