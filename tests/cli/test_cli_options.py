@@ -1,0 +1,73 @@
+"""The light names the command signatures use are the library's, and the help shows them."""
+
+import pytest
+from typer.testing import CliRunner
+
+from hilrig.cli import app, options
+from hilrig.control import Law
+from hilrig.emulator.scenarios import SCENARIOS
+from hilrig.rig import RigKind, SessionConfig
+from hilrig.viz import DEFAULT_MAX_POINTS, DEFAULT_MAX_POSES
+from hilrig.viz.sinks import GRPC_PORT, WEB_PORT
+
+
+def test_the_mirrors_are_the_library_names() -> None:
+    assert [m.value for m in options.LawOption] == [m.value for m in Law]
+    assert all(m.law() is Law(m.value) for m in options.LawOption)
+    assert tuple(sorted(SCENARIOS)) == options.SCENARIO_NAMES
+    assert (options.GRPC_PORT, options.WEB_PORT) == (GRPC_PORT, WEB_PORT)
+    assert (options.DEFAULT_MAX_POINTS, options.DEFAULT_MAX_POSES) == (
+        DEFAULT_MAX_POINTS,
+        DEFAULT_MAX_POSES,
+    )
+    assert SessionConfig.__dataclass_fields__["rig"].type in ("RigKind", RigKind)
+
+
+@pytest.mark.parametrize(
+    ("command", "shown"),
+    [
+        (
+            ["record"],
+            [
+                "--controller",
+                "<fixed|variable-stiffness|adaptive>",
+                "[default: adaptive]",
+                "--rig",
+                "<emulated|aubo>",
+                "[default: emulated]",
+                "Volunteer model (emulated rig): hand-contact, none, paper-body,",
+                "--subject",
+                "[required]",
+                "TOML: [endpoints] of a real rig",
+                "[trajectory] (name = 'waypoints', points = [[t_s, dx_m, dy_m, dz_m], ...]",
+            ],
+        ),
+        (
+            ["replay"],
+            [
+                "--rig",
+                "<emulated|aubo>",
+                "NAME.[cartesian.|joint.]PARAM=VALUE",
+                "NAME.[GROUP.]PARAM=START:STOP:COUNT",
+                "TOML with [endpoints]",
+            ],
+        ),
+        (
+            ["view"],
+            [
+                "NAME.[GROUP.]PARAM=VALUE",
+                "[default: 9876]",
+                "[default: 9090]",
+                "[default: 20000]",
+                "[default: 5000]",
+            ],
+        ),
+        (["export"], ["<parquet|csv>", "[default: parquet]"]),
+        (["rig", "serve"], ["--scenario", "[default: paper-end-effector]"]),
+    ],
+)
+def test_help_shows_options_choices_and_defaults(command: list[str], shown: list[str]) -> None:
+    result = CliRunner().invoke(app, [*command, "--help"], env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    missing = [text for text in shown if text not in result.output]
+    assert missing == []
