@@ -49,4 +49,3 @@ def test_session_path_makes_its_folder(tmp_path: Path, monkeypatch: pytest.Monke
     default = session_path(None, "S001-replay")
     assert default.parent == Path("recordings") and default.parent.is_dir()
     assert default.name.startswith("S001-replay-") and default.suffix == ".mcap"
-
