@@ -1,14 +1,18 @@
 """The machine's own timing floor: what no 1 kHz loop on it can beat, measured without hilrig.
 
-Two calibration figures, read beside the session suite's (a loop cannot be more punctual than
-the thread it runs on):
+Three calibration figures, read beside the session suite's (a loop cannot be more punctual than
+the thread it runs on, nor than the link its samples come through):
 
 - **wake-up lateness**: a bare thread (no GC, 1 us timer slack, as the loop runs) sleeps to
   absolute deadlines 1 ms apart, idle and with a busy process burning one core; the share of
   wake-ups more than a period late bounds the session's missed deadlines from below;
 - **CPU taken away**: a thread that never sleeps (normal priority: a SCHED_FIFO spinner would
   only measure Linux's real-time throttling, 50 ms a second) reads the clock in a tight loop;
-  every gap over 100 us is time the OS or the hypervisor gave to someone else (steal on a VM).
+  every gap over 100 us is time the OS or the hypervisor gave to someone else (steal on a VM);
+- **link delivery**: a writer thread (as the emulated rig's, SCHED_FIFO 40 where granted) sends
+  4 bytes every 1 ms through a pty (the emulated F/T sensor's link: a tty, whose bytes the
+  kernel passes on in a worker thread of normal priority) and through a socket pair; a reader
+  (as the loop) takes them in ``select``: the share delivered more than a period after writing.
 
 Where the OS grants it (root or CAP_SYS_NICE), the waking thread runs SCHED_FIFO like the loop;
 the detail says whether it did.
@@ -16,11 +20,16 @@ the detail says whether it did.
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import os
+import select
+import socket
 import subprocess
 import sys
+import threading
 import time
+import tty
 
 import numpy as np
 
@@ -31,6 +40,8 @@ PERIOD_NS = 1_000_000
 WAKE_S = 20.0
 SPIN_S = 10.0
 GAP_NS = 100_000
+LINK_S = 10.0
+WRITER_PRIORITY = 40  # the emulated rig's thread (hilrig/emulator/slots.py)
 
 
 def run() -> list[Result]:
@@ -42,7 +53,60 @@ def run() -> list[Result]:
         busy_core.kill()
         busy_core.wait()
     gaps = _spin_gaps()
-    return _wake_rows(idle, "") + _wake_rows(busy, " (a busy process on one core)") + gaps
+    links = _delivery_rows("pty", _delivery(*os.openpty(), raw=True))
+    links += _delivery_rows("socket pair", _delivery(*(s.detach() for s in socket.socketpair())))
+    return _wake_rows(idle, "") + _wake_rows(busy, " (a busy process on one core)") + gaps + links
+
+
+def _delivery(write_fd: int, read_fd: int, *, raw: bool = False) -> np.ndarray:
+    """Write-to-read delay (ns) of 4-byte messages sent every period from another thread."""
+    if raw:
+        tty.setraw(read_fd)
+    count = round(LINK_S * 1e9 / PERIOD_NS)
+    sent = np.zeros(count, dtype=np.int64)
+    delay = np.zeros(count, dtype=np.int64)
+
+    def write() -> None:
+        with contextlib.suppress(OSError):  # not permitted: normal priority
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(WRITER_PRIORITY))
+        deadline = time.monotonic_ns() + PERIOD_NS
+        for i in range(count):
+            remaining = deadline - time.monotonic_ns()
+            if remaining > 0:
+                time.sleep(remaining / 1e9)
+            sent[i] = time.monotonic_ns()
+            os.write(write_fd, i.to_bytes(4, "little"))
+            deadline += PERIOD_NS
+
+    writer = threading.Thread(target=write)
+    received, pending = 0, b""
+    try:
+        with realtime_python():
+            writer.start()
+            while received < count:
+                select.select([read_fd], [], [], 1.0)
+                now = time.monotonic_ns()
+                pending += os.read(read_fd, 4096)
+                while len(pending) >= 4:
+                    i = int.from_bytes(pending[:4], "little")
+                    delay[i] = now - sent[i]
+                    pending, received = pending[4:], received + 1
+    finally:
+        writer.join()
+        os.close(write_fd)
+        os.close(read_fd)
+    return delay
+
+
+def _delivery_rows(link: str, delay_ns: np.ndarray) -> list[Result]:
+    q = quantiles_us(delay_ns)
+    over_pct = 100 * float(np.count_nonzero(delay_ns > PERIOD_NS)) / len(delay_ns)
+    detail = {"messages": len(delay_ns), "delay_us": q, "over_a_period_pct": over_pct}
+    name = f"1 kHz messages through a {link}"
+    return [
+        Result("machine", f"{name}: delay p99", q["p99"], "us", detail=detail),
+        Result("machine", f"{name}: delivered over a period late", over_pct, "%", detail=detail),
+    ]
 
 
 def _wake_ups() -> tuple[np.ndarray, bool]:
