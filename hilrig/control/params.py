@@ -229,7 +229,8 @@ def bounds(law: Law, params: AdmittanceParams, axes: int) -> AxisBounds:
     k_min = k_d.copy()
     if law is not Law.FIXED:
         k_min = (1.0 - params.per_axis("a2", axes)) * k_d
-    gamma_bound = 2.0 * b_min * k_min / (m * k_d)
+    with np.errstate(all="ignore"):  # extreme values: validate refuses them, naming which
+        gamma_bound = 2.0 * b_min * k_min / (m * k_d)
     gamma = params.per_axis("gamma", axes)
     gamma = np.where(np.isnan(gamma), 0.9 * gamma_bound, gamma)
     return AxisBounds(b_min, b_d.copy(), k_min, k_d.copy(), gamma, gamma_bound)
@@ -285,6 +286,11 @@ def validate(law: Law, params: AdmittanceParams, axes: int, dt: float) -> AxisBo
         value = float(getattr(params, name))
         if not (math.isfinite(value) and value >= 0):
             raise ParameterError(f"{name} = {value!r} s must be finite and >= 0")
+        if value / dt > MAX_TICKS:
+            raise ParameterError(
+                f"{name} = {value:g} s must be at most 2**53 ticks of dt = {dt:g} s "
+                f"({MAX_TICKS * dt:g} s)"
+            )
     if params.rate_guard:
         require(found.gamma > 0, "gamma", found.gamma, "> 0")
         require(
@@ -305,8 +311,68 @@ def validate(law: Law, params: AdmittanceParams, axes: int, dt: float) -> AxisBo
             margin,
             "< 4 for semi-implicit Euler to be stable (use a smaller dt or integrator 'zoh')",
         )
+    _check_discretisation(params.integrator, m, found, dt)
     if params.groups is not None:
         groups = np.asarray(params.groups)
         if (groups < 0).any():
             raise ParameterError(f"groups = {params.groups} must be >= 0")
     return found
+
+
+#: Largest dt*(b + k)/m of the exact (zoh) discretisation: its scaling and squaring is accurate
+#: to about 1e-9 (relative) up to here; beyond, precision goes, and from about 1e19 its numbers
+#: overflow (a table of NaN).
+MAX_STEP_STIFFNESS = 1e6
+#: Least fraction by which the slowest mode must decay per tick: below it the discretised
+#: filter's spectral radius is 1 in float64 and an offset would never return to rest.
+MIN_DECAY_PER_TICK = 1e-12
+#: Longest state-machine time, in ticks (counted in int64, converted from float64 exactly).
+MAX_TICKS = 2**53
+
+
+def _check_discretisation(
+    integrator: Integrator, m: NDArray[np.float64], found: AxisBounds, dt: float
+) -> None:
+    """Refuse an axis whose discretised filter would not be finite, or would not return to rest
+    in float64, anywhere in the law's range of b and k (its corners)."""
+    for i in range(m.shape[0]):
+        b_max, k_max = float(found.b_max[i]), float(found.k_max[i])
+        if integrator is Integrator.ZOH:
+            rate = (k_max + b_max) / m[i]  # as packed.py scales the series
+            if not dt * rate <= MAX_STEP_STIFFNESS:
+                raise ParameterError(
+                    f"m = {m[i]:g}, b_d = {b_max:g}, k_d = {k_max:g} on axis {i}: "
+                    f"dt*(b_d + k_d)/m = {dt * rate:.3g} at dt = {dt:g} s must be <= "
+                    f"{MAX_STEP_STIFFNESS:g}, or the discretised filter loses its precision "
+                    "and overflows"
+                )
+        corners = (
+            ("b_min", float(found.b_min[i]), "k_min", float(found.k_min[i])),
+            ("b_min", float(found.b_min[i]), "k_d", k_max),
+            ("b_d", b_max, "k_min", float(found.k_min[i])),
+            ("b_d", b_max, "k_d", k_max),
+        )
+        for b_name, b, k_name, k in corners:
+            with np.errstate(divide="ignore", over="ignore"):  # damping_ratio's formula
+                zeta = float(np.float64(b) / (2.0 * np.sqrt(k * m[i])))
+            if not math.isfinite(zeta):
+                raise ParameterError(
+                    f"m = {m[i]:g}, {b_name} = {b:g}, {k_name} = {k:g} on axis {i}: the damping "
+                    f"ratio b/(2*sqrt(m*k)) = {zeta:g} must be finite"
+                )
+            decay = _slowest_decay(b * dt / m[i], k * dt * dt / m[i])
+            if not decay >= MIN_DECAY_PER_TICK:
+                raise ParameterError(
+                    f"m = {m[i]:g}, {b_name} = {b:g}, {k_name} = {k:g} on axis {i}: the slowest "
+                    f"mode decays by {decay:.3g} per tick of {dt:g} s, less than "
+                    f"{MIN_DECAY_PER_TICK:g}, so in float64 the filter would never return to rest"
+                )
+
+
+def _slowest_decay(beta: float, kappa: float) -> float:
+    """-Re(s) of the slowest root of s^2 + beta*s + kappa (s = lambda*dt, beta, kappa > 0):
+    the fraction by which that mode decays per tick."""
+    disc = beta * beta - 4.0 * kappa
+    if disc < 0.0:
+        return 0.5 * beta
+    return 2.0 * kappa / (beta + math.sqrt(disc))  # (beta - sqrt(disc))/2 without cancelling

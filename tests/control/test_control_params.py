@@ -1,5 +1,7 @@
 """Invalid or unstable parameters are refused before any motion, with exact messages."""
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -161,3 +163,75 @@ def test_simulate_with_a_law_name_needs_dt_and_params() -> None:
     controller = make("fixed", EE, axes=1)
     with pytest.raises(ParameterError, match=r"^pass either a controller or law/params/dt"):
         simulate(controller, np.zeros((3, 1)), params=EE)
+
+
+@pytest.mark.parametrize(
+    ("law", "overrides", "message"),
+    [
+        (
+            "adaptive",
+            {"m": 1e-300},
+            "m = 1e-300, b_d = 150, k_d = 300 on axis 0: dt*(b_d + k_d)/m = 9e+299 at dt = 0.002 s "
+            "must be <= 1e+06, or the discretised filter loses its precision and overflows",
+        ),
+        (
+            "fixed",
+            {"k_d": 1e300},
+            "m = 20, b_d = 150, k_d = 1e+300 on axis 0: dt*(b_d + k_d)/m = 1e+296 at dt = "
+            "0.002 s must be <= 1e+06, or the discretised filter loses its precision and overflows",
+        ),
+        (
+            "adaptive",
+            {"m": 1e300},
+            "m = 1e+300, b_min = 120, k_min = 90 on axis 0: the slowest mode decays by 1.2e-301 "
+            "per tick of 0.002 s, less than 1e-12, so in float64 the filter would never return "
+            "to rest",
+        ),
+        (
+            "fixed",
+            {"b_d": 1e-300},
+            "m = 20, b_min = 1e-300, k_min = 300 on axis 0: the slowest mode decays by 5e-305 "
+            "per tick of 0.002 s, less than 1e-12, so in float64 the filter would never return "
+            "to rest",
+        ),
+        (
+            "fixed",
+            {"m": 1e-200, "b_d": 1e-200, "k_d": 1e-200},
+            "m = 1e-200, b_min = 1e-200, k_min = 1e-200 on axis 0: the damping ratio "
+            "b/(2*sqrt(m*k)) = inf must be finite",
+        ),
+        (
+            "adaptive",
+            {"hold_s": 1e300},
+            "hold_s = 1e+300 s must be at most 2**53 ticks of dt = 0.002 s (1.80144e+13 s)",
+        ),
+    ],
+)
+def test_parameters_whose_discrete_filter_is_not_finite_or_stable_are_refused(
+    law: str, overrides: dict, message: str
+) -> None:
+    with pytest.raises(ParameterError) as err:
+        make(law, {"preset": EE, **overrides}, axes=1, dt=0.002)
+    assert str(err.value) == message
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # overflowing bounds of refused sets
+@pytest.mark.parametrize("law", ["fixed", "adaptive"])
+@pytest.mark.parametrize("integrator", ["zoh", "euler"])
+def test_every_accepted_mass_damping_and_stiffness_gives_finite_results(
+    law: str, integrator: str
+) -> None:
+    force = np.zeros((40, 1))
+    force[5:25, 0] = 5.0
+    exponents = (-300, -30, -12, -6, -2, 0, 2, 6, 12, 30, 300)
+    accepted = 0
+    for m, b, k in itertools.product((10.0**e for e in exponents), repeat=3):
+        values = {"m": m, "b_d": b, "k_d": k, "beta": 0.2 * b, "integrator": integrator}
+        try:
+            result = simulate(law, force, 0.002, {"preset": "adaptive", **values})
+        except ParameterError:
+            continue
+        accepted += 1
+        for name in ("offset", "velocity", "damping", "stiffness", "zeta"):
+            assert np.isfinite(getattr(result, name)).all(), (name, m, b, k)
+    assert accepted > 20
