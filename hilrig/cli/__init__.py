@@ -2,10 +2,18 @@
 
 Importing it is light (``hilrig --help`` answers at once): each command imports what it needs
 when it runs, and the signatures take their types from light modules (:mod:`.options`).
-Expected failures (HilrigError) print one line to stderr and exit 2; nothing else is caught.
+Every failure is one line on stderr (:mod:`.errors`): expected ones (HilrigError, a mistake in
+the command line) exit 2, anything else is reported as a bug and exits 3, Ctrl-C exits 130;
+``hilrig --debug COMMAND`` shows the full traceback.
 """
 
 import sys
+import warnings
+from collections.abc import Sequence
+
+import typer
+from typer._click.exceptions import ClickException, NoArgsIsHelpError, UsageError
+from typer.main import get_command
 
 from hilrig.cli import (  # noqa: F401  (register their commands)
     analyze,
@@ -18,16 +26,63 @@ from hilrig.cli import (  # noqa: F401  (register their commands)
     view,
 )
 from hilrig.cli.app import app
-from hilrig.cli.errors import ERROR_EXIT, print_error
+from hilrig.cli.errors import (
+    BUG_EXIT,
+    ERROR_EXIT,
+    INTERRUPT_EXIT,
+    SETTINGS,
+    print_bug,
+    print_error,
+    print_interrupted,
+    print_usage_error,
+    show_warning,
+)
 from hilrig.errors import HilrigError
 
-__all__ = ["app", "main"]
+__all__ = ["app", "main", "run"]
 
 
 def main() -> None:
     """Entry point of the ``hilrig`` script."""
+    sys.exit(run(sys.argv[1:]))
+
+
+def run(args: Sequence[str]) -> int:
+    """Run the command line ``args`` (without the program's name); its exit status."""
+    SETTINGS.debug = False  # until the app's callback reads --debug
+    shown_by = warnings.showwarning
+    warnings.showwarning = show_warning
     try:
-        app()
+        return _run(args)
+    finally:
+        warnings.showwarning = shown_by
+
+
+def _run(args: Sequence[str]) -> int:
+    try:
+        status = get_command(app).main(list(args), prog_name="hilrig", standalone_mode=False)
     except HilrigError as err:
         print_error(err)
-        sys.exit(ERROR_EXIT)
+        return ERROR_EXIT
+    except NoArgsIsHelpError as err:  # ``hilrig`` alone shows its help
+        err.show()
+        return err.exit_code
+    except UsageError as err:
+        print_usage_error(err.format_message(), err.ctx.command_path if err.ctx else None)
+        return err.exit_code
+    except ClickException as err:
+        print_usage_error(err.format_message(), None)
+        return err.exit_code
+    except typer.Abort:  # end of input where a prompt read it
+        print_usage_error("aborted", None)
+        return 1
+    except KeyboardInterrupt:
+        print_interrupted()
+        return INTERRUPT_EXIT
+    except Exception as err:
+        print_bug(err)
+        return BUG_EXIT
+    # typer turns a KeyboardInterrupt in a command into exit status 130 (no command returns it)
+    if status == INTERRUPT_EXIT:
+        print_interrupted()
+    return status if isinstance(status, int) else 0

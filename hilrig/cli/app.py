@@ -5,6 +5,7 @@ from typer._click import Context
 from typer.core import TyperGroup, TyperOption
 
 from hilrig import __version__
+from hilrig.cli.errors import SETTINGS
 
 
 class Group(TyperGroup):
@@ -42,5 +43,12 @@ def root(
     version: bool = typer.Option(
         False, "--version", callback=_print_version, is_eager=True, help="Print the version."
     ),
+    debug: bool = typer.Option(
+        False,
+        "--debug",
+        help="On any failure, print the full traceback before the one-line error (for a bug "
+        "report).",
+    ),
 ) -> None:
     """Hardware-in-the-loop experiments on collaborative-robot collision response."""
+    SETTINGS.debug = debug

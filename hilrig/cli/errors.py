@@ -1,27 +1,110 @@
-"""Expected failures (HilrigError) as exactly one line on stderr, never wrapped and never read
-as markup, and exit status 2; anything else is a bug and keeps its traceback."""
+"""One way to fail: every failure of a command is exactly one line on stderr, never wrapped and
+never read as markup, with an exit status that says what kind it was.
+
+- an expected failure (HilrigError, a mistake in the command line): ``error: ...``, exit 2;
+- anything else is a bug: ``error: unexpected <type>: <message>`` asking for a report, exit 3;
+- Ctrl-C outside a session: ``interrupted``, exit 130;
+- a warning (e.g. a RecordingWarning about a damaged file): ``warning: ...``.
+
+``hilrig --debug COMMAND`` prints the full traceback before the line (:data:`SETTINGS`).
+"""
+
+from __future__ import annotations
 
 import functools
+import re
+import traceback
 from collections.abc import Callable
-from typing import ParamSpec, TypeVar
+from typing import TYPE_CHECKING, ParamSpec, TextIO, TypeVar
 
 import typer
 
 from hilrig.errors import HilrigError
 
+if TYPE_CHECKING:
+    from rich.console import Console
+
 P = ParamSpec("P")
 R = TypeVar("R")
-#: Exit status of an expected failure.
+#: Exit status of an expected failure (and of a mistake in the command line).
 ERROR_EXIT = 2
+#: Exit status of a bug: an exception hilrig did not expect.
+BUG_EXIT = 3
+#: Exit status after Ctrl-C (128 + SIGINT), as shells report it.
+INTERRUPT_EXIT = 130
+
+
+class Settings:
+    """The global options (``hilrig --debug``), set by the app's callback."""
+
+    debug = False
+
+
+SETTINGS = Settings()
+
+
+def one_line(text: str) -> str:
+    """``text`` with its line breaks and runs of white space made single spaces."""
+    return " ".join(text.split())
+
+
+def _stderr() -> Console:
+    from rich.console import Console
+
+    return Console(stderr=True, soft_wrap=True, markup=False, highlight=False)
+
+
+def print_line(label: str, style: str, text: str) -> None:
+    """``<label>: <text>`` on stderr as one line (``text`` is shown as given: no markup)."""
+    from rich.text import Text
+
+    _stderr().print(Text.assemble((f"{label}: ", style), one_line(text)))
 
 
 def print_error(err: HilrigError) -> None:
     """``error: <message>`` on stderr, one line whatever the terminal's width."""
-    from rich.console import Console
-    from rich.text import Text
+    if SETTINGS.debug:
+        traceback.print_exception(err)
+    print_line("error", "bold red", str(err))
 
-    line = Text.assemble(("error: ", "bold red"), str(err))
-    Console(stderr=True, soft_wrap=True).print(line, highlight=False)
+
+def print_usage_error(message: str, command: str | None) -> None:
+    """A mistake in the command line (unknown option, bad value) as one ``error:`` line."""
+    message = re.sub(r"Value error, ", "", one_line(message))  # typer's pydantic prefix
+    where = f" (see {command} --help)" if command else ""
+    print_line("error", "bold red", f"{message}{where}")
+
+
+def print_bug(err: BaseException) -> None:
+    """An unexpected exception: one line naming it and asking for a bug report (the full
+    traceback first with ``--debug``)."""
+    if SETTINGS.debug:
+        traceback.print_exception(err)
+        hint = "please report it with the traceback above"
+    else:
+        hint = "please report it; run again with hilrig --debug ... for the full traceback"
+    message = one_line(str(err)) or "(no message)"
+    print_line(
+        "error",
+        "bold red",
+        f"unexpected {type(err).__name__}: {message}. This is a bug in hilrig: {hint}",
+    )
+
+
+def print_interrupted() -> None:
+    print_line("interrupted", "bold red", "stopped by Ctrl-C")
+
+
+def show_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
+    """:func:`warnings.showwarning` for the command line: ``warning: <message>``, one line."""
+    print_line("warning", "yellow", str(message))
 
 
 def one_line_errors(command: Callable[P, R]) -> Callable[P, R]:
