@@ -89,8 +89,12 @@ def replay_command(
     subject: Annotated[
         str | None, typer.Option(help="HIL replay: pseudonymous subject id (default: FILE's).")
     ] = None,
-    rate: Annotated[float, typer.Option(help="HIL replay: loop rate, Hz.")] = 1000.0,
-    start: Annotated[float, typer.Option(help="HIL replay: from this time of FILE, s.")] = 0.0,
+    rate: Annotated[
+        float | None, typer.Option(help="HIL replay: loop rate, Hz (default: 1000).")
+    ] = None,
+    start: Annotated[
+        float | None, typer.Option(help="HIL replay: from this time of FILE, s (default: 0).")
+    ] = None,
     duration: Annotated[
         float | None, typer.Option(help="HIL replay: this much of FILE, s (default: the rest).")
     ] = None,
@@ -108,11 +112,19 @@ def replay_command(
         console = Console(highlight=False, width=200)
     errors = Console(stderr=True, highlight=False, soft_wrap=True)
     long_input = file.is_file() and file.stat().st_size >= LONG_INPUT_BYTES
+    rig_only: dict[str, object] = {"--subject": subject, "--rate": rate, "--start": start}
+    rig_only |= {"--duration": duration, "--config": config}
+    given = [option for option, value in rig_only.items() if value is not None]
+    if rig is None and given:
+        raise ReplayError(
+            f"{', '.join(given)}: only for --rig (playing FILE into a live session); "
+            "an offline replay or --verify takes the whole input"
+        )
     if check:
-        if controller or setting or sweep or out or resample:
+        if controller or setting or sweep or out or resample or jobs or rig is not None:
             raise ReplayError(
                 "--verify replays the recorded controller: it takes no --controller, --set, "
-                "--sweep, --out or --resample"
+                "--sweep, --out, --resample, --jobs or --rig"
             )
         _verify(file, console, errors, long_input=long_input)
     elif rig is not None:
@@ -121,7 +133,8 @@ def replay_command(
                 "--rig replays into the live loop's controller: it takes no --controller, --set, "
                 "--sweep, --verify, --resample or --jobs"
             )
-        _into_rig(file, rig, subject, rate, start, duration, config, out or [])
+        timing = _rig_timing(rate, start, duration)
+        _into_rig(file, rig, subject, timing, config, out or [])
     else:
         _offline(
             file,
@@ -148,13 +161,30 @@ def _verify(file: Path, console: Console, errors: Console, *, long_input: bool) 
         raise typer.Exit(VERIFY_FAILED)
 
 
+def _rig_timing(
+    rate: float | None, start: float | None, duration: float | None
+) -> tuple[float, float, float | None]:
+    """(rate Hz, start s, duration s or None) of a HIL replay, checked before any work."""
+    import math
+
+    from hilrig.errors import ReplayError
+
+    rate_hz = 1000.0 if rate is None else rate
+    start_s = 0.0 if start is None else start
+    if not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise ReplayError(f"--rate {rate_hz:g}: the loop rate must be a finite number of Hz > 0")
+    if not (math.isfinite(start_s) and start_s >= 0):
+        raise ReplayError(f"--start {start_s:g}: must be a finite time of FILE >= 0 s")
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
+        raise ReplayError(f"--duration {duration:g}: must be a finite time > 0 s")
+    return rate_hz, start_s, duration
+
+
 def _into_rig(
     file: Path,
     rig: RigKind,
     subject: str | None,
-    rate_hz: float,
-    start_s: float,
-    duration_s: float | None,
+    timing: tuple[float, float, float | None],
     config: Path | None,
     out: list[Path],
 ) -> None:
@@ -171,6 +201,7 @@ def _into_rig(
     from hilrig.rig.config_file import read_rig_file
     from hilrig.rig.playback import playback_session
 
+    rate_hz, start_s, duration_s = timing
     if len(out) > 1 or (out and out[0].suffix.lower() not in MCAP_SUFFIXES):
         raise ReplayError("--rig records one new session: pass at most one --out FILE.mcap")
     trace = load_trace(file)
@@ -210,17 +241,16 @@ def _offline(
     from rich.text import Text
 
     from hilrig.cli.progress import phase_bar
-    from hilrig.replay.job import check_outputs, replay_file, write_outputs
+    from hilrig.replay.job import replay_file, replay_outputs, write_outputs
     from hilrig.replay.specs import parse_specs
 
-    specs = parse_specs(*spec_options)
-    outputs = check_outputs(out)
-    with phase_bar(errors, enabled=long_input) as progress:
+    specs = parse_specs(*spec_options)  # the size of sweeps is refused here, before any work
+    with replay_outputs(out) as outputs, phase_bar(errors, enabled=long_input) as progress:
         replayed = replay_file(file, specs, resample=resample, jobs=jobs, progress=progress)
         for note in replayed.trace.notes:
             errors.print(Text.assemble(("note: ", "yellow"), note))
         write_outputs(replayed, outputs, progress=progress)
-    for path in outputs:
+    for path in out:  # all of them in place, or none
         console.print(f"wrote {path}")
     console.print(_summary(replayed))
 

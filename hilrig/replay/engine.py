@@ -8,6 +8,12 @@ into the table's columns (strided views), in blocks of ticks so that progress ca
 force and zeta are then filled column-wise with numpy. That halves the memory traffic, which is
 what a long replay spends its time on (see also :mod:`.blocks`, where that memory comes from).
 
+Results are checked as they are made: a run whose offsets or velocities stop being finite
+numbers (a non-finite state never becomes finite again, so the state after each block of ticks
+tells) or whose damping ratio is not finite (it is NaN or infinite whenever damping or
+stiffness is) is refused with one line naming the run, the column and the first tick, and no
+table is returned.
+
 Runs go either one after the other in this process or, with ``jobs`` > 1, to a
 ``ProcessPoolExecutor`` of forked local processes that write into a shared anonymous mapping
 (nothing is pickled but the parameters). Which is faster depends on the size: see
@@ -65,8 +71,23 @@ def run(
         load_progress = None if progress is None else _phase(progress, "load")
         trace = load_trace(source, resample=resample, progress=load_progress)
     specs = parse_specs() if controllers is None else controllers
+    check_table_size(trace, len(specs))
     runs = [Run.from_spec(spec, trace.axis_names) for spec in specs]
     return replay(trace, runs, jobs=jobs, progress=progress)
+
+
+def check_table_size(trace: ForceTrace, runs: int) -> None:
+    """Refuse ``runs`` runs over ``trace`` whose result table would not fit in this machine's
+    memory (ReplayError naming both sizes)."""
+    ticks = trace.ticks
+    need = table_bytes(len(trace.axis_names), ticks * runs)
+    have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    if need > have:
+        raise ReplayError(
+            f"{runs} run{'s' * (runs != 1)} of {ticks} ticks need a {need / 2**30:.1f} GiB "
+            f"table, more than this machine's {have / 2**30:.1f} GiB; replay fewer runs or a "
+            "shorter input"
+        )
 
 
 def _phase(progress: Progress, phase: str) -> Callable[[int, int], None]:
@@ -90,13 +111,7 @@ def replay(
     if repeated:
         raise ReplayError(f"run names repeat: {', '.join(repeated)}")
     axes, ticks = len(trace.axis_names), trace.ticks
-    need = table_bytes(axes, ticks * len(runs))
-    have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    if need > have:
-        raise ReplayError(
-            f"{len(runs)} runs of {ticks} ticks need a {need / 2**30:.1f} GiB table, more than "
-            f"this machine's {have / 2**30:.1f} GiB; replay fewer runs or a shorter input"
-        )
+    check_table_size(trace, len(runs))
     controllers = [_controller(r, trace) for r in runs]
     force = np.require(trace.force, np.float64, ["C_CONTIGUOUS", "WRITEABLE"])
     workers = choose_jobs(runs, axes * ticks) if jobs is None else max(1, jobs)
@@ -104,13 +119,19 @@ def replay(
     report = _Report(progress, ticks * len(runs))
     pool = workers > 1 and "fork" in multiprocessing.get_all_start_methods()
     blocks = Blocks.allocate(axes, len(FLOAT_ROWS), ticks * len(runs), shared=pool)
+    found: list[NonFinite | None] = []
     if pool:
         _warm_up(force, controllers[0], blocks)  # compile before forking: once, not per process
-        _in_pool(force, controllers, blocks, workers, report)
+        found = _in_pool(force, controllers, blocks, workers, report)
     else:
         for index, controller in enumerate(controllers):
-            simulate_into(force, controller, blocks, index * ticks, report.add)
+            found.append(simulate_into(force, controller, blocks, index * ticks, report.add))
+            if found[-1] is not None:
+                break
     blocks.settle()
+    for index, bad in enumerate(found):
+        if bad is not None:
+            raise ReplayError(bad.describe(runs[index], trace))
     return frame(trace, runs, blocks)
 
 
@@ -129,6 +150,40 @@ def _controller(run: Run, trace: ForceTrace) -> AdmittanceController:
         return make(run.law, run.params, len(trace.axis_names), trace.dt_s)
     except ParameterError as err:
         raise ReplayError(f"run {run.name}: {err}") from err
+
+
+@dataclass(frozen=True)
+class NonFinite:
+    """The first value of a run's result that is not a finite number."""
+
+    quantity: str  # a FLOAT_ROWS name
+    axis: int
+    tick: int
+    value: float
+
+    def describe(self, run: Run, trace: ForceTrace) -> str:
+        column = f"{self.quantity}_{trace.axis_names[self.axis]}"
+        return (
+            f"run {run.name} ({run.law.value}): column {column} is {self.value} at tick "
+            f"{self.tick} (t = {trace.t_s[self.tick]:.6g} s), its first value that is not "
+            "finite; the result is refused"
+        )
+
+
+def _first_nonfinite(
+    columns: dict[str, NDArray[np.float64]], quantities: Sequence[str], tick0: int
+) -> NonFinite | None:
+    """The earliest non-finite value of ``columns[q]`` (A, T) over ``quantities``, if any."""
+    found: NonFinite | None = None
+    for quantity in quantities:
+        bad = ~np.isfinite(columns[quantity])
+        if bad.any():
+            tick = int(np.argmax(bad.any(axis=0)))
+            axis = int(np.argmax(bad[:, tick]))
+            if found is None or tick0 + tick < found.tick:
+                value = float(columns[quantity][axis, tick])
+                found = NonFinite(quantity, axis, tick0 + tick, value)
+    return found
 
 
 @dataclass
@@ -151,9 +206,10 @@ def simulate_into(
     blocks: Blocks,
     row0: int,
     on_block: Callable[[int], None] | None = None,
-) -> None:
+) -> NonFinite | None:
     """Run ``controller`` from rest over ``force`` (T, A), writing rows ``row0`` ..
-    ``row0 + T`` of ``blocks``; ``on_block(ticks)`` after each block of ticks."""
+    ``row0 + T`` of ``blocks``; ``on_block(ticks)`` after each block of ticks. Stops at the
+    first block whose result is not finite and returns where (None when all is finite)."""
     ticks = force.shape[0]
     controller.reset()
     floats, contact = blocks.floats, blocks.contact
@@ -164,11 +220,19 @@ def simulate_into(
         controller.run_into(force[start:stop], out, contact[:, rows].T)
         if on_block is not None:
             on_block(stop - start)
+        # a non-finite offset or velocity stays non-finite: the last tick's state tells
+        if not (np.isfinite(controller.offset).all() and np.isfinite(controller.velocity).all()):
+            block = {q: floats[:, FLOAT_ROWS[q], rows] for q in ("offset", "velocity")}
+            return _first_nonfinite(block, ("offset", "velocity"), start)
     rows = slice(row0, row0 + ticks)
     column = {quantity: floats[:, row, rows] for quantity, row in FLOAT_ROWS.items()}
     column["force"][:] = force.T
     mass = controller.mass[:, None]
     damping_ratio(column["damping"], column["stiffness"], mass, out=column["zeta"])
+    # zeta >= 0, and NaN or +inf wherever damping or stiffness is not finite: its max tells
+    if ticks and not np.isfinite(np.max(column["zeta"])):
+        return _first_nonfinite(column, ("zeta",), 0)
+    return None
 
 
 # -- the process pool -------------------------------------------------------------------------
@@ -191,10 +255,9 @@ def _init_worker(shared: _Shared) -> None:
     _inherited.append(shared)
 
 
-def _work(index: int, row0: int) -> int:
+def _work(index: int, row0: int) -> NonFinite | None:
     shared = _inherited[-1]
-    simulate_into(shared.force, shared.controllers[index], shared.blocks, row0)
-    return index
+    return simulate_into(shared.force, shared.controllers[index], shared.blocks, row0)
 
 
 def _warm_up(force: NDArray[np.float64], controller: AdmittanceController, blocks: Blocks) -> None:
@@ -209,7 +272,8 @@ def _in_pool(
     blocks: Blocks,
     workers: int,
     report: _Report,
-) -> None:
+) -> list[NonFinite | None]:
+    """Every run in the pool; what each found (see :func:`simulate_into`), in run order."""
     ticks = force.shape[0]
     context = multiprocessing.get_context("fork")
     sys.stdout.flush()
@@ -224,3 +288,4 @@ def _in_pool(
         for future in as_completed(futures):
             future.result()
             report.add(ticks)
+    return [future.result() for future in futures]

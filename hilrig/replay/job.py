@@ -1,26 +1,38 @@
-"""One offline replay job, as ``hilrig replay`` runs it: outputs checked before any work, the
-trace loaded, its runs replayed into one table, the table written to each output.
+"""One offline replay job, as ``hilrig replay`` runs it: every output checked before any work,
+the trace loaded, the size of its result checked, its runs replayed into one table (refused if
+anything in it is not finite), and the table written to every output or to none.
 
-    outputs = check_outputs([Path("results.parquet")])
-    replayed = replay_file("session.mcap", parse_specs(["adaptive", "fixed"]))
-    write_outputs(replayed, outputs)
+    with replay_outputs([Path("results.parquet"), Path("results.mcap")]) as outputs:
+        replayed = replay_file("session.mcap", parse_specs(["adaptive", "fixed"]))
+        write_outputs(replayed, outputs)
+    # both files are in place now, or neither is
+
+The outputs go through :func:`hilrig.outputs.new_files`: each path is checked when the block
+starts (a known suffix, no file there, a writable folder, none named twice), written under a
+hidden temporary name beside it, and moved into place when the block ends without an error.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
 
 from hilrig.errors import ReplayError
-from hilrig.replay.engine import Progress, replay
+from hilrig.outputs import new_files
+from hilrig.replay.engine import Progress, check_table_size, replay
+from hilrig.replay.inputs import MCAP_SUFFIXES as INPUT_MCAP_SUFFIXES
 from hilrig.replay.inputs import PathLike, load_trace
-from hilrig.replay.outputs import MCAP_SUFFIXES, PARQUET_SUFFIXES, write_mcap, write_parquet
+from hilrig.replay.outputs import MCAP_SUFFIXES, PARQUET_SUFFIXES, mcap_into, parquet_into
 from hilrig.replay.results import Run, peak_offsets
 from hilrig.replay.specs import ControllerSpec
 from hilrig.replay.trace import ForceTrace
+
+#: What ``--out`` may name, by suffix.
+OUTPUT_SUFFIXES = PARQUET_SUFFIXES + MCAP_SUFFIXES
 
 
 @dataclass(frozen=True)
@@ -36,20 +48,28 @@ class Replayed:
         return peak_offsets(self.table, self.trace.axis_names)
 
 
-def check_outputs(paths: Sequence[Path]) -> list[Path]:
-    """``paths`` if each can be written: a known suffix (Parquet or MCAP), no file there yet, an
-    existing directory, none given twice; else ReplayError naming it."""
-    known = PARQUET_SUFFIXES + MCAP_SUFFIXES
+@dataclass(frozen=True)
+class Output:
+    """An output file: where it goes (``path``) and where it is written first."""
+
+    path: Path
+    temporary: Path
+
+
+@contextmanager
+def replay_outputs(paths: Sequence[Path]) -> Iterator[list[Output]]:
+    """Check ``paths`` before any work and yield where to write each; when the block ends they
+    are all moved into place, after an error none is (and nothing is left behind).
+
+    Raises ReplayError for an unknown suffix, OutputError (from :mod:`hilrig.outputs`) for a
+    path that exists, a missing or read-only folder, or a path named twice.
+    """
     for path in paths:
-        if path.suffix.lower() not in known:
-            raise ReplayError(f"--out {path}: unknown output type; known: {', '.join(known)}")
-        if path.exists():
-            raise ReplayError(f"--out {path}: already exists; refusing to overwrite it")
-        if not path.parent.is_dir():
-            raise ReplayError(f"--out {path}: directory {path.parent} does not exist")
-    if len(set(paths)) != len(paths):
-        raise ReplayError("--out: the same file is given twice")
-    return list(paths)
+        if path.suffix.lower() not in OUTPUT_SUFFIXES:
+            known = ", ".join(OUTPUT_SUFFIXES)
+            raise ReplayError(f"--out {path}: unknown output type; known: {known}")
+    with new_files(*paths) as temporaries:
+        yield [Output(p, t) for p, t in zip(paths, temporaries, strict=True)]
 
 
 def replay_file(
@@ -61,29 +81,37 @@ def replay_file(
     progress: Progress | None = None,
 ) -> Replayed:
     """The trace in ``path`` replayed through ``specs``; ``progress(phase, done, total)``
-    follows the phases ``load`` and ``replay``."""
+    follows the phases ``load`` and ``replay``. Raises ReplayError (one line) for an input,
+    parameters or a result size that cannot be replayed, and for a result that is not finite."""
+    if resample and Path(path).suffix.lower() in INPUT_MCAP_SUFFIXES:
+        raise ReplayError(
+            f"{path}: --resample is for CSV and Parquet tables; a recording is replayed at "
+            "its loop's period as it is"
+        )
     trace = load_trace(
         path,
         resample=resample,
         progress=None if progress is None else lambda done, total: progress("load", done, total),
     )
+    check_table_size(trace, len(specs))
     runs = [Run.from_spec(spec, trace.axis_names) for spec in specs]
     return Replayed(trace, runs, replay(trace, runs, jobs=jobs, progress=progress))
 
 
 def write_outputs(
-    replayed: Replayed, paths: Sequence[Path], *, progress: Progress | None = None
+    replayed: Replayed, outputs: Sequence[Output], *, progress: Progress | None = None
 ) -> None:
-    """The result table to each of ``paths``: Parquet (the table) or MCAP (one topic per run,
-    the ``write`` phase of ``progress``)."""
-    for path in paths:
-        if path.suffix.lower() in PARQUET_SUFFIXES:
-            write_parquet(replayed.table, path)
+    """The result table to each output's temporary: Parquet (the table) or MCAP (one topic per
+    run, the ``write`` phase of ``progress``)."""
+    for output in outputs:
+        if output.path.suffix.lower() in PARQUET_SUFFIXES:
+            parquet_into(replayed.table, output.temporary, shown_as=output.path)
         else:
-            write_mcap(
+            mcap_into(
                 replayed.table,
-                path,
+                output.temporary,
                 session=replayed.trace.session,
                 t0_ns=replayed.trace.t0_ns,
                 progress=None if progress is None else lambda d, t: progress("write", d, t),
+                shown_as=output.path,
             )

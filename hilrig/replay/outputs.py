@@ -11,6 +11,10 @@ Log times are the input's own (a recording's tick times), so the file lines up w
 recording it came from when both are opened together in Foxglove or Rerun; a table input's
 ticks start at the Unix epoch. The session record is the recording's (or, for a table input,
 one naming the table, subject ``X00``) and ``replay.json`` is attached with the runs' metadata.
+
+Files are written through :func:`hilrig.outputs.new_files`: an existing file is never replaced
+(OutputError), and a write that fails leaves nothing behind. ``parquet_into`` and ``mcap_into``
+write to a path the caller already holds (a temporary of its own ``new_files``).
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from hilrig.errors import RecordingError, ReplayError
+from hilrig.outputs import new_files
 from hilrig.recording import (
     Attachment,
     ChannelSpec,
@@ -48,9 +53,18 @@ _ROS_NAME = re.compile(r"[^A-Za-z0-9_]")
 def write_parquet(table: pd.DataFrame, path: PathLike) -> Path:
     """Write a result table (with its ``attrs`` metadata) to ``path``; returns the path.
 
-    Raises ReplayError if the file exists or cannot be written.
+    Raises OutputError if the file exists or its folder cannot be written, ReplayError if the
+    writing fails (nothing is left behind).
     """
-    p = _fresh(path)
+    p = Path(path)
+    with new_files(p) as (temporary,):
+        parquet_into(table, temporary, shown_as=p)
+    return p
+
+
+def parquet_into(table: pd.DataFrame, path: Path, *, shown_as: Path | None = None) -> None:
+    """Write a result table to ``path`` as it is (no checks); errors name ``shown_as``."""
+    shown = path if shown_as is None else shown_as
     arrays: list[pa.Array] = []
     for name in table.columns:
         column = table[name]
@@ -64,11 +78,10 @@ def write_parquet(table: pd.DataFrame, path: PathLike) -> Path:
     arrow = pa.Table.from_arrays(arrays, names=[str(c) for c in table.columns], metadata=metadata)
     try:
         pq.write_table(
-            arrow, p, compression="zstd", compression_level=1, use_dictionary=["run", "law"]
+            arrow, path, compression="zstd", compression_level=1, use_dictionary=["run", "law"]
         )
     except (OSError, pa.ArrowException) as err:
-        raise ReplayError(f"{p}: cannot write Parquet: {err}") from err
-    return p
+        raise ReplayError(f"{shown}: cannot write Parquet: {err}") from err
 
 
 def load_results(path: PathLike) -> tuple[pd.DataFrame, dict[str, Any]]:
@@ -118,9 +131,25 @@ def write_mcap(
 
     ``session`` and ``t0_ns`` are the input recording's session record and first tick log
     time (:class:`.ForceTrace` has both); ``progress(done, total)`` counts ticks written.
-    Raises ReplayError if the file exists or cannot be written.
+    Raises OutputError if the file exists or its folder cannot be written, ReplayError if the
+    writing fails (nothing is left behind).
     """
-    p = _fresh(path)
+    p = Path(path)
+    with new_files(p) as (temporary,):
+        mcap_into(table, temporary, session=session, t0_ns=t0_ns, progress=progress, shown_as=p)
+    return p
+
+
+def mcap_into(
+    table: pd.DataFrame,
+    path: Path,
+    *,
+    session: SessionInfo | None = None,
+    t0_ns: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    shown_as: Path | None = None,
+) -> None:
+    """:func:`write_mcap` to ``path`` as it is (no checks); errors name ``shown_as``."""
     meta = table.attrs.get(INPUT_KEY, {})
     axes = list(meta.get("axes") or _axes(table))
     runs_meta = table.attrs.get(RUNS_KEY, {})
@@ -147,11 +176,11 @@ def write_mcap(
     replay_json = json.dumps(about, indent=2).encode()
     attachment = Attachment("replay.json", "application/json", replay_json)
     try:
-        with SessionWriter(p, session, channels=channels, attachments=[attachment]) as writer:
+        with SessionWriter(path, session, channels=channels, attachments=[attachment]) as writer:
             _write_runs(writer, table, axes, slices, topics, base_ns, progress)
     except RecordingError as err:
-        raise ReplayError(str(err)) from err
-    return p
+        shown = str(path if shown_as is None else shown_as)
+        raise ReplayError(str(err).replace(str(path), shown)) from err
 
 
 def _write_runs(
@@ -197,12 +226,3 @@ def _write_runs(
 
 def _axes(table: pd.DataFrame) -> list[str]:
     return [str(c)[len("offset_") :] for c in table.columns if str(c).startswith("offset_")]
-
-
-def _fresh(path: PathLike) -> Path:
-    p = Path(path)
-    if p.exists():
-        raise ReplayError(f"{p}: already exists; refusing to overwrite it")
-    if not p.parent.is_dir():
-        raise ReplayError(f"{p}: directory {p.parent} does not exist")
-    return p

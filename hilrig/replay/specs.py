@@ -6,6 +6,7 @@ The command line's three options, parsed here into typed :class:`ControllerSpec`
                                                    fixed); NAME defaults to LAW
     --set NAME.[GROUP.]PARAM=VALUE                 one parameter of one controller
     --sweep NAME.[GROUP.]PARAM=START:STOP:COUNT    COUNT evenly spaced values, both ends included
+                                                   (COUNT 1 only with START = STOP)
     --sweep NAME.[GROUP.]PARAM=V1,V2,...           the listed values
 
 GROUP is ``cartesian`` (axes x, y, z) or ``joint`` (joint1..joint6); without it a parameter is
@@ -14,6 +15,10 @@ m in kg, b_d and beta in N*s/m or N*m*s/rad, k_d in N/m or N*m/rad, delta in N o
 s) or, with a GROUP, ``preset``. A controller starts from the live loop's presets
 (``adaptive`` for the Cartesian group, ``adaptive-joint`` for the joints); presets apply before
 the other settings. A controller with several sweeps runs their grid (cartesian product).
+
+The number of runs (each controller's grid: the product of its sweeps' sizes, summed over the
+controllers) is computed from the arguments before any value is expanded, and more than
+``MAX_RUNS`` is refused at once.
 
 Run names: a controller named explicitly (``soft=adaptive``) keeps its name; one named after
 its law gets its settings appended (``adaptive.a1=10``); sweeps append their values to either
@@ -44,7 +49,8 @@ DEFAULT_PRESETS: Mapping[str, str] = {"cartesian": "adaptive", "joint": "adaptiv
 #: The fields a setting may change (``groups`` follows from the input's axes).
 PARAMS = tuple(f.name for f in fields(AdmittanceParams) if f.name != "groups")
 _NAME = re.compile(r"[A-Za-z0-9_-]+")
-_MAX_SWEEP_VALUES = 10_000
+#: Most runs one replay may ask for (all controllers and sweep points together).
+MAX_RUNS = 10_000
 
 Value = float | bool | str | tuple[float, ...]
 
@@ -121,10 +127,12 @@ def parse_specs(
     for argument in sets:
         name, setting = _setting(argument, "--set", declared)
         settings[name].append(setting)
-    grids: dict[str, list[list[Setting]]] = {name: [] for name in declared}
+    asked: dict[str, list[tuple[str, str, str]]] = {name: [] for name in declared}
     for argument in sweeps:
         name, key, text = _assignment(argument, "--sweep", declared)
-        grids[name].append(_sweep(argument, key, text))
+        asked[name].append((argument, key, text))
+    _check_size(asked)
+    grids = {name: [_sweep(*sweep) for sweep in asked[name]] for name in declared}
     specs: list[ControllerSpec] = []
     for name, (law, explicit) in declared.items():
         base = name if explicit else name + "".join(f".{s.label}" for s in settings[name])
@@ -228,24 +236,54 @@ def _number(argument: str, option: str, text: str) -> float:
         raise ReplayError(f"{option} {argument}: {text!r} is not a number") from None
 
 
+def _check_size(asked: Mapping[str, Sequence[tuple[str, str, str]]]) -> None:
+    """Refuse more than MAX_RUNS runs, counted from the arguments (nothing expanded)."""
+    sizes = {name: [_sweep_size(*sweep) for sweep in sweeps] for name, sweeps in asked.items()}
+    total = sum(math.prod(counts) for counts in sizes.values())
+    if total > MAX_RUNS:
+        grids = "; ".join(
+            f"{name}: {' x '.join(map(str, counts))}" for name, counts in sizes.items() if counts
+        )
+        raise ReplayError(
+            f"--sweep: {total} runs ({grids}), more than the limit of {MAX_RUNS}; "
+            "sweep fewer values"
+        )
+
+
+def _sweep_size(argument: str, key: str, text: str) -> int:
+    """How many values a sweep has, from its text alone."""
+    _split_key(argument, "--sweep", key)
+    if ":" not in text:
+        return text.count(",") + 1
+    return _count(argument, text.split(":"))
+
+
+def _count(argument: str, parts: list[str]) -> int:
+    if len(parts) != 3:
+        raise ReplayError(f"--sweep {argument}: expected START:STOP:COUNT")
+    try:
+        count = int(parts[2])
+    except ValueError:
+        raise ReplayError(f"--sweep {argument}: COUNT {parts[2]!r} is not a whole number") from None
+    if count < 1:
+        raise ReplayError(f"--sweep {argument}: COUNT must be >= 1")
+    return count
+
+
 def _sweep(argument: str, key: str, text: str) -> list[Setting]:
     """The settings of one sweep: ``START:STOP:COUNT`` or ``V1,V2,...``."""
     group, param = _split_key(argument, "--sweep", key)
     if ":" in text:
         parts = text.split(":")
-        if len(parts) != 3:
-            raise ReplayError(f"--sweep {argument}: expected START:STOP:COUNT")
+        count = _count(argument, parts)
         start, stop = (_number(argument, "--sweep", p) for p in parts[:2])
-        try:
-            count = int(parts[2])
-        except ValueError:
-            raise ReplayError(
-                f"--sweep {argument}: COUNT {parts[2]!r} is not a whole number"
-            ) from None
-        if not 1 <= count <= _MAX_SWEEP_VALUES:
-            raise ReplayError(f"--sweep {argument}: COUNT must be 1..{_MAX_SWEEP_VALUES}")
         if not (math.isfinite(start) and math.isfinite(stop)):
             raise ReplayError(f"--sweep {argument}: START and STOP must be finite")
+        if count == 1 and start != stop:
+            raise ReplayError(
+                f"--sweep {argument}: COUNT 1 cannot include both START and STOP; "
+                "use COUNT >= 2, or START = STOP for one value"
+            )
         # 12 significant digits: the run name shows the value that is used, without 0.1 + 0.2
         # noise (0.30000000000000004)
         texts = [f"{v:.12g}" for v in np.linspace(start, stop, count)]

@@ -138,3 +138,48 @@ def test_runs_built_by_hand_need_unique_names() -> None:
     same = Run.from_spec(spec, AXES)
     with pytest.raises(ReplayError, match=r"^run names repeat: fixed$"):
         replay(trace(ticks=10), [same, same])
+
+
+def _pushed(force_n: float) -> ForceTrace:
+    force = np.zeros((3000, 3))
+    force[100:, 0] = force_n
+    return ForceTrace(np.arange(3000) * 0.002, force, AXES[:3], "inline", 0.002)
+
+
+@pytest.mark.parametrize("jobs", [1, 2], ids=["this process", "pool"])
+def test_a_result_that_is_not_finite_is_refused_naming_the_run_column_and_tick(jobs: int) -> None:
+    specs = parse_specs(["adaptive", "fixed"], ["fixed.m=1", "fixed.b_d=0.1", "fixed.k_d=1"])
+    with pytest.raises(ReplayError) as caught:
+        run(_pushed(1e308), specs, jobs=jobs)  # finite, valid, but the offset overflows
+    assert str(caught.value) == (
+        "run fixed.m=1.b_d=0.1.k_d=1 (fixed): column offset_x is inf at tick 1490 "
+        "(t = 2.98 s), its first value that is not finite; the result is refused"
+    )
+    assert run(_pushed(1e3), specs, jobs=jobs)["offset_x"].notna().all()  # the same, sane
+
+
+def test_a_damping_ratio_that_is_not_finite_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    ratio = engine.damping_ratio
+
+    def broken(*args: object, out: np.ndarray) -> np.ndarray:
+        ratio(*args, out=out)  # type: ignore[arg-type]
+        out[1, 7] = np.nan
+        return out
+
+    monkeypatch.setattr(engine, "damping_ratio", broken)
+    with pytest.raises(ReplayError) as caught:
+        run(trace(ticks=10, axes=AXES[:3]), parse_specs(["fixed"]), jobs=1)
+    assert str(caught.value) == (
+        "run fixed (fixed): column zeta_y is nan at tick 7 (t = 0.014 s), its first value "
+        "that is not finite; the result is refused"
+    )
+
+
+def test_too_big_a_table_is_refused_before_any_run_is_built(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(engine, "table_bytes", lambda axes, rows: 1 << 60)
+    monkeypatch.setattr(Run, "from_spec", None)  # building a run would fail otherwise
+    with pytest.raises(ReplayError) as caught:
+        run(trace(ticks=10), parse_specs(["fixed"]))
+    assert str(caught.value).startswith("1 run of 10 ticks need a 1073741824.0 GiB table, ")

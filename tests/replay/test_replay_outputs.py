@@ -13,7 +13,8 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from replay_helpers import EXAMPLE, trace
 
-from hilrig.replay import INPUT_KEY, RUNS_KEY, ReplayError, load_trace, parse_specs, run
+from hilrig.errors import OutputError
+from hilrig.replay import INPUT_KEY, RUNS_KEY, ReplayError, load_trace, outputs, parse_specs, run
 from hilrig.replay.outputs import load_results, topic_names, write_mcap, write_parquet
 
 
@@ -42,8 +43,10 @@ def test_parquet_never_overwrites_and_load_refuses_other_tables(
 ) -> None:
     path = tmp_path / "results.parquet"
     path.write_bytes(b"")
-    with pytest.raises(ReplayError, match=r"already exists; refusing to overwrite it$"):
+    with pytest.raises(OutputError) as caught:
         write_parquet(example_table, path)
+    assert str(caught.value) == f"{path}: already exists; refusing to overwrite it"
+    assert path.read_bytes() == b""
     other = tmp_path / "other.parquet"
     pd.DataFrame({"x": [1.0]}).to_parquet(other)
     with pytest.raises(ReplayError) as caught:
@@ -111,3 +114,17 @@ def test_topic_names_are_ros_names_and_unique() -> None:
         "adaptive.a1=1_5": "/replay/adaptive_a1_1_5_2/state",
         "2fast": "/replay/run_2fast/state",
     }
+
+
+def test_a_failed_write_leaves_nothing_behind(
+    example_table: pd.DataFrame, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def failing(*args: object, **kwargs: object) -> None:
+        raise OSError("disk full")
+
+    monkeypatch.setattr(outputs.pq, "write_table", failing)
+    path = tmp_path / "results.parquet"
+    with pytest.raises(ReplayError) as caught:
+        write_parquet(example_table, path)
+    assert str(caught.value) == f"{path}: cannot write Parquet: disk full"
+    assert list(tmp_path.iterdir()) == []

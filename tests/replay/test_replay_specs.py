@@ -8,6 +8,8 @@ from hypothesis import strategies as st
 
 from hilrig.control import Law, preset
 from hilrig.replay import ReplayError, parse_specs
+from hilrig.replay import specs as specs_module
+from hilrig.replay.specs import MAX_RUNS
 
 
 def test_no_controller_means_the_three_laws_with_the_loops_presets() -> None:
@@ -71,7 +73,9 @@ def test_sweep_values_are_rounded_to_what_their_names_say() -> None:
 @given(st.lists(st.integers(1, 4), min_size=1, max_size=3))
 def test_a_grid_has_the_product_of_the_counts_and_unique_names(counts: list[int]) -> None:
     params = ["a1", "beta", "delta"]
-    sweeps = [f"adaptive.{p}=1:2:{n}" for p, n in zip(params, counts, strict=False)]
+    sweeps = [
+        f"adaptive.{p}=1:{2 if n > 1 else 1}:{n}" for p, n in zip(params, counts, strict=False)
+    ]
     specs = parse_specs(["adaptive"], sweeps=sweeps)
     expected = 1
     for n in counts:
@@ -170,7 +174,7 @@ def test_a_grid_has_the_product_of_the_counts_and_unique_names(counts: list[int]
             ["fixed.k_d=1:2:x"],
             "--sweep fixed.k_d=1:2:x: COUNT 'x' is not a whole number",
         ),
-        (["fixed"], [], ["fixed.k_d=1:2:0"], "--sweep fixed.k_d=1:2:0: COUNT must be 1..10000"),
+        (["fixed"], [], ["fixed.k_d=1:2:0"], "--sweep fixed.k_d=1:2:0: COUNT must be >= 1"),
         (
             ["fixed"],
             [],
@@ -195,3 +199,49 @@ def test_malformed_specs_are_refused_in_one_line(
 def test_a_sweep_value_written_twice_is_refused() -> None:
     with pytest.raises(ReplayError, match=r"^--sweep fixed\.k_d=1,1\.0: values repeat$"):
         parse_specs(["fixed"], sweeps=["fixed.k_d=1,1.0"])
+
+
+def test_count_1_is_one_value_only_when_start_equals_stop() -> None:
+    (spec,) = parse_specs(["fixed"], sweeps=["fixed.k_d=250:250:1"])
+    assert spec.name == "fixed.k_d=250" and spec.cartesian.k_d == 250.0
+    with pytest.raises(ReplayError) as caught:
+        parse_specs(["fixed"], sweeps=["fixed.k_d=200:400:1"])
+    assert str(caught.value) == (
+        "--sweep fixed.k_d=200:400:1: COUNT 1 cannot include both START and STOP; "
+        "use COUNT >= 2, or START = STOP for one value"
+    )
+
+
+def test_a_grid_over_the_run_limit_is_refused_before_anything_is_expanded(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    def expanded(*args: object) -> None:
+        raise AssertionError("a sweep was expanded")
+
+    monkeypatch.setattr(specs_module, "_sweep", expanded)
+    cases = [
+        (
+            ["adaptive"],
+            ["adaptive.a1=1:40:10000", "adaptive.beta=1:29:10000"],
+            "--sweep: 100000000 runs (adaptive: 10000 x 10000), more than the limit of 10000; "
+            "sweep fewer values",
+        ),
+        (
+            ["soft=adaptive", "fixed"],
+            ["soft.a1=1:40:100", "soft.joint.chi=square,abs", "fixed.k_d=1:2:10000"],
+            "--sweep: 10200 runs (soft: 100 x 2; fixed: 10000), more than the limit of 10000; "
+            "sweep fewer values",
+        ),
+    ]
+    for controllers, sweeps, message in cases:
+        with pytest.raises(ReplayError) as caught:
+            parse_specs(controllers, sweeps=sweeps)
+        assert str(caught.value) == message
+
+
+def test_the_run_limit_counts_every_controller() -> None:
+    assert MAX_RUNS == 10_000
+    specs = parse_specs(["fixed"], sweeps=[f"fixed.k_d=1:2:{MAX_RUNS}"])
+    assert len(specs) == MAX_RUNS
+    with pytest.raises(ReplayError, match=r"^--sweep: 10001 runs \(fixed: 10000\), more than"):
+        parse_specs(["fixed", "adaptive"], sweeps=[f"fixed.k_d=1:2:{MAX_RUNS}"])
