@@ -187,3 +187,12 @@ def test_a_sweep_too_big_is_refused_at_once() -> None:
         "error: --sweep: 100000000 runs (adaptive: 10000 x 10000), more than the limit of "
         "10000; sweep fewer values\n"
     )
+
+
+def test_a_parquet_table_timed_by_timestamps_replays_over_its_own_duration(tmp_path: Path) -> None:
+    path = tmp_path / "push.parquet"
+    t = pd.date_range("2026-01-01", periods=500, freq="2ms")
+    pd.DataFrame({"t": t, "fx": 1.0, "fy": 0.0, "fz": 0.0}).to_parquet(path)
+    result = runner.invoke(app, ["replay", str(path), "-c", "fixed"])
+    assert result.exit_code == 0, result.output
+    assert "over 1.000 s of" in result.stdout  # 500 ticks of 2 ms

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime
 import io
 from pathlib import Path
 
@@ -9,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hilrig.replay import ReplayError, load_trace
+from hilrig.replay import ReplayError, load_trace, tables
 from hilrig.replay.tables import UNIFORM_TOLERANCE
 
 FORMATS = ("csv", "parquet")
@@ -124,7 +125,7 @@ def test_duplicate_times(tmp_path: Path, fmt: str) -> None:
 @pytest.mark.parametrize("fmt", FORMATS)
 def test_a_missing_time(tmp_path: Path, fmt: str) -> None:
     path = table(tmp_path, fmt, "t,fx,fy,fz\n0,1,2,3\n,1,2,3\n")
-    assert refused(path, resample=True) == f"{where(path, 't', 1)}: time is nan"
+    assert refused(path, resample=True) == f"{where(path, 't', 1)}: time is missing"
 
 
 @pytest.mark.parametrize("fmt", FORMATS)
@@ -193,3 +194,102 @@ def test_unreadable_and_unknown_inputs(tmp_path: Path) -> None:
     )
     missing = tmp_path / "missing.csv"
     assert refused(missing).startswith(f"{missing}: cannot read as CSV: ")
+
+
+def _parquet(tmp_path: Path, t: object, fx: object = 1.0) -> Path:
+    path = tmp_path / "input.parquet"
+    pd.DataFrame({"t": t, "fx": fx, "fy": 0.0, "fz": 0.0}).to_parquet(path)
+    return path
+
+
+@pytest.mark.parametrize(
+    "t",
+    [
+        pd.date_range("2026-01-01", periods=5, freq="1ms"),  # written as timestamp[us]
+        pd.date_range("2026-01-01", periods=5, freq="1ms").astype("datetime64[ms]"),
+        # across the switch to summer time: the zone's clock jumps, the time does not
+        pd.date_range("2026-03-29 00:59:59.998", periods=5, freq="1ms", tz="Europe/Berlin"),
+        pd.to_timedelta(np.arange(5) + 1000, unit="ms"),
+    ],
+    ids=["timestamp us", "timestamp ms", "timestamp with zone", "duration"],
+)
+def test_timestamps_and_durations_are_seconds_from_the_first_row(tmp_path: Path, t: object) -> None:
+    trace = load_trace(_parquet(tmp_path, t))
+    np.testing.assert_array_equal(trace.t_s, np.arange(5) / 1000)
+    assert trace.dt_s == pytest.approx(0.001, rel=1e-12)
+    assert trace.duration_s < 1.0
+
+
+def test_a_missing_timestamp_is_refused(tmp_path: Path) -> None:
+    t = pd.Series(pd.date_range("2026-01-01", periods=5, freq="1ms")).where(lambda s: s.index != 2)
+    path = _parquet(tmp_path, t)
+    assert refused(path) == f"{path}: column t, row 2: time is missing"
+
+
+@pytest.mark.parametrize(
+    ("t", "fx", "message"),
+    [
+        (
+            [False, True, True],
+            1.0,
+            "column t has type bool; times must be numbers (s) or timestamps",
+        ),
+        (
+            [0.0, 0.001, 0.002],
+            pd.date_range("2026-01-01", periods=3, freq="1ms"),
+            "column fx has type datetime64[us]; forces must be numbers (N or N*m)",
+        ),
+        (
+            [0.0, 0.001, 0.002],
+            [True, False, True],
+            "column fx has type bool; forces must be numbers (N or N*m)",
+        ),
+        (
+            [datetime.date(2026, 1, d) for d in (1, 2, 3)],
+            1.0,
+            "column t, row 0: datetime.date(2026, 1, 1) is not a number",
+        ),
+    ],
+    ids=["bool times", "timestamp forces", "bool forces", "dates"],
+)
+def test_columns_of_other_types_are_refused_naming_the_type(
+    tmp_path: Path, t: object, fx: object, message: str
+) -> None:
+    path = _parquet(tmp_path, t, fx)
+    assert refused(path) == f"{path}: {message}"
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_times_that_are_not_seconds_are_refused(tmp_path: Path, fmt: str) -> None:
+    path = table(tmp_path, fmt, "t,fx,fy,fz\n0,1,2,3\n1,1,2,3\n2,1,2,3\n")  # ms, as integers
+    assert refused(path) == (
+        f"{path}: column t: a period (median step) of 1 s; an admittance loop runs faster than "
+        "1 Hz: are the times in s?"
+    )
+
+
+def test_a_resampling_grid_too_big_for_memory_is_refused_before_it_is_made(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = table(tmp_path, "csv", "t,fx,fy,fz\n0,1,2,3\n0.001,1,2,3\n0.002,1,2,3\n1e7,1,2,3\n")
+    monkeypatch.setattr(tables, "_resampled", None)  # making the grid would fail otherwise
+    monkeypatch.setattr(tables.os, "sysconf", lambda name: 1 << 20 if "PAGES" in name else 4096)
+    assert refused(path, resample=True) == (
+        f"{path}: resampling onto a uniform 0.001 s grid from 0 to 10000000 s makes "
+        "10000000001 ticks (the largest gap is 1e+07 s): one run's result would need 1462.2 "
+        "GiB, more than this machine's 4.0 GiB"
+    )
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("", "cannot read as CSV: No columns to parse from file"),
+        ("t,fx,fy,fz\n", "0 rows; at least two are needed"),
+    ],
+    ids=["empty file", "header only"],
+)
+def test_an_empty_table_is_refused(tmp_path: Path, text: str, message: str) -> None:
+    path = tmp_path / "empty.csv"
+    path.write_text(text)
+    assert refused(path) == f"{path}: {message}"
