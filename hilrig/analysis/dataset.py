@@ -10,8 +10,9 @@ software version, controller parameters (JSON) and ``source_start_ns``, the log 
 source's t_s = 0 (ns since the Unix epoch), so ``source_start_ns + start_s * 1e9`` places an
 event in time. Subjects appear only as their pseudonymous ids. A replay result's rows go under
 the session its input was recorded in (null, hive's ``__HIVE_DEFAULT_PARTITION__``, when its
-metadata does not say) with each run's name as the controller. Writing a session again replaces
-its partitions.
+metadata does not say) with each run's name as the controller. A partition already in the
+dataset is refused, or with ``overwrite`` replaced (the others are kept); the partition files
+are written through :func:`hilrig.outputs.new_files`, all of them or none.
 """
 
 from __future__ import annotations
@@ -22,10 +23,13 @@ from pathlib import Path
 
 import pandas as pd
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.dataset as ds
+import pyarrow.parquet as pq
 
 from hilrig.analysis.compare import Analysis, metrics_frame
 from hilrig.errors import AnalysisError
+from hilrig.outputs import new_files
 from hilrig.recording.session import utc_iso, validate_subject_id
 
 PARTITIONS = ("subject_id", "controller", "session_id")
@@ -67,27 +71,54 @@ def dataset_frame(analyses: Sequence[Analysis]) -> pd.DataFrame:
     return frame[[*SESSION_COLUMNS, *(c for c in frame.columns if c not in SESSION_COLUMNS)]]
 
 
-def write_dataset(frame: pd.DataFrame, root: Path) -> Path:
-    """Write :func:`dataset_frame` rows under ``root``, partitioned by PARTITIONS.
-
-    Partitions already there are replaced, others kept. Raises AnalysisError if ``root`` is a
-    file or cannot be written.
-    """
+def check_dataset_root(root: Path) -> None:
+    """Refuse, before any work, a dataset root that is a file (AnalysisError)."""
     if root.exists() and not root.is_dir():
         raise AnalysisError(f"{root}: the dataset goes in a folder, and this is a file")
+
+
+def write_dataset(frame: pd.DataFrame, root: Path, *, overwrite: bool = False) -> Path:
+    """Write :func:`dataset_frame` rows under ``root``, partitioned by PARTITIONS, one
+    ``part-0.parquet`` per partition, all of them or none.
+
+    A partition already there is refused unless ``overwrite`` (then it is replaced); the others
+    are kept. Raises AnalysisError if ``root`` is a file, a partition exists, or the files cannot
+    be written (OutputError for folders that cannot be).
+    """
+    check_dataset_root(root)
     table = pa.Table.from_pandas(frame, preserve_index=False)
-    try:
-        ds.write_dataset(
-            table,
-            root,
-            format="parquet",
-            partitioning=ds.partitioning(_PARTITION_SCHEMA, flavor="hive"),
-            existing_data_behavior="delete_matching",
-            basename_template="part-{i}.parquet",
+    parts = _partitions(frame, table, root)
+    existing = [path for path in parts if path.exists()]
+    if existing and not overwrite:
+        raise AnalysisError(
+            f"{existing[0]}: already exists (this session's partition of the dataset); pass "
+            "--overwrite to replace it"
         )
+    try:
+        with new_files(*parts, overwrite=overwrite, create_folders=True) as temporaries:
+            for temporary, part in zip(temporaries, parts.values(), strict=True):
+                pq.write_table(part, temporary)
     except (OSError, pa.ArrowException) as err:
         raise AnalysisError(f"{root}: cannot write the dataset ({err})") from err
     return root
+
+
+def _partitions(frame: pd.DataFrame, table: pa.Table, root: Path) -> dict[Path, pa.Table]:
+    """``{partition file: its rows without the partition columns}``, hive paths encoded as
+    pyarrow's dataset writer and reader do."""
+    hive = ds.partitioning(_PARTITION_SCHEMA, flavor="hive")
+    groups: dict[tuple[str | None, ...], list[int]] = {}
+    columns = (frame[name].tolist() for name in PARTITIONS)
+    for row, key in enumerate(zip(*columns, strict=True)):
+        groups.setdefault(tuple(None if pd.isna(v) else str(v) for v in key), []).append(row)
+    parts: dict[Path, pa.Table] = {}
+    for key, rows in groups.items():
+        condition = pc.scalar(True)
+        for name, value in zip(PARTITIONS, key, strict=True):
+            condition &= pc.field(name).is_null() if value is None else pc.field(name) == value
+        folder, _ = hive.format(condition)
+        parts[root / folder / "part-0.parquet"] = table.take(rows).drop_columns(list(PARTITIONS))
+    return parts
 
 
 def read_dataset(root: Path) -> pd.DataFrame:

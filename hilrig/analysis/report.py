@@ -11,12 +11,15 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 from rich import box
 from rich.table import Table
 
 from hilrig.analysis.compare import Analysis
 from hilrig.analysis.metrics import unit
 from hilrig.errors import AnalysisError
+from hilrig.outputs import check_new_file, new_files
 
 LABELS = {
     "max_abs_offset": "max |offset|",
@@ -28,6 +31,8 @@ LABELS = {
 }
 _SHOWN_AS = {"m": ("mm", 1000.0), "m/s": ("mm/s", 1000.0)}  # SI unit -> (display unit, factor)
 FILE_SUFFIXES = (".csv", ".parquet")
+#: Schema metadata key of a replay result table (hilrig.replay's contract).
+REPLAY_RUNS_KEY = b"hilrig.runs"
 
 
 def _shown(value: float, si_unit: str) -> str:
@@ -88,19 +93,41 @@ def comparison_table(comparison: pd.DataFrame, *, baseline: str, title: str) -> 
     return table
 
 
-def write_table(frames: Sequence[pd.DataFrame], path: Path) -> Path:
-    """Concatenate ``frames`` and write them to ``path`` (.csv or .parquet, by its suffix).
-
-    Raises AnalysisError for another suffix or a file that cannot be written.
-    """
+def check_table_path(path: Path, *, overwrite: bool = False) -> None:
+    """Refuse, before any work, a comparison file :func:`write_table` could not write: another
+    suffix, a file already there unless ``overwrite``, a replay result even then
+    (AnalysisError); a missing or read-only folder (OutputError)."""
     if path.suffix not in FILE_SUFFIXES:
         raise AnalysisError(f"{path}: write a .csv or a .parquet file (or a folder for a dataset)")
+    if path.exists() and not overwrite:
+        raise AnalysisError(f"{path}: already exists; pass --overwrite to replace it")
+    if path.suffix == ".parquet" and path.is_file():
+        try:
+            metadata = pq.read_schema(path).metadata or {}
+        except (OSError, pa.ArrowException):
+            metadata = {}  # not Parquet: whatever it is, --overwrite was asked for
+        if REPLAY_RUNS_KEY in metadata:
+            raise AnalysisError(
+                f"{path}: is a replay result; refusing to replace it, even with --overwrite"
+            )
+    check_new_file(path, overwrite=overwrite)
+
+
+def write_table(frames: Sequence[pd.DataFrame], path: Path, *, overwrite: bool = False) -> Path:
+    """Concatenate ``frames`` and write them to ``path`` (.csv or .parquet, by its suffix),
+    whole or not at all (:func:`hilrig.outputs.new_files`); an existing file is replaced only
+    with ``overwrite``.
+
+    Raises AnalysisError (OutputError for the folder) if ``path`` cannot be written.
+    """
+    check_table_path(path, overwrite=overwrite)
     frame = pd.concat(frames, ignore_index=True)
-    try:
-        if path.suffix == ".csv":
-            frame.to_csv(path, index=False)
-        else:
-            frame.to_parquet(path, index=False)
-    except OSError as err:
-        raise AnalysisError(f"{path}: cannot write ({err})") from err
+    with new_files(path, overwrite=overwrite) as (temporary,):
+        try:
+            if path.suffix == ".csv":
+                frame.to_csv(temporary, index=False)
+            else:
+                frame.to_parquet(temporary, index=False)
+        except OSError as err:
+            raise AnalysisError(f"{path}: cannot write ({err})") from err
     return path

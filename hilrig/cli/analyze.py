@@ -47,6 +47,13 @@ def analyze_command(
     merge_gap_s: Annotated[
         float, typer.Option("--merge-gap-s", help="Events closer than this merge, s.")
     ] = 0.05,
+    overwrite: Annotated[
+        bool,
+        typer.Option(
+            help="Replace an existing --out file, or the dataset's partitions of the sessions "
+            "analysed (never an input)."
+        ),
+    ] = False,
 ) -> None:
     """Find collisions in the force channels, measure every run on every axis, compare runs."""
     from rich.console import Console
@@ -66,13 +73,25 @@ def analyze_command(
         write_dataset,
         write_table,
     )
+    from hilrig.analysis.dataset import check_dataset_root
+    from hilrig.analysis.report import check_table_path
     from hilrig.errors import AnalysisError
 
     config = EventConfig(delta=delta, debounce_s=debounce_s, merge_gap_s=merge_gap_s)
-    analyses = [analyze(s, events=config) for s in load_sources(paths, exclude=out)]
+    dataset = out is not None and (out.is_dir() or not out.suffix)
+    if out is not None:  # every output checked before any work
+        if any(out.resolve() == path.resolve() for path in paths):
+            raise AnalysisError(f"--out {out}: is also an input; write the results elsewhere")
+        if dataset:
+            check_dataset_root(out)
+        else:
+            check_table_path(out, overwrite=overwrite)
+    sources = load_sources(paths, exclude=out)
+    names = list(dict.fromkeys(run.name for source in sources for run in source.runs))
+    if baseline is not None and baseline not in names:
+        raise AnalysisError(f"baseline {baseline!r} is not a run here; runs: {', '.join(names)}")
+    analyses = [analyze(s, events=config) for s in sources]
     runs = runs_of(values(analyses))
-    if baseline is not None and baseline not in runs:
-        raise AnalysisError(f"baseline {baseline!r} is not a run here; runs: {', '.join(runs)}")
     chosen = baseline if baseline is not None else default_baseline(runs)
     console = Console(highlight=False)
     if not console.is_terminal:  # keep whole rows when piped
@@ -87,10 +106,10 @@ def analyze_command(
         console.print(comparison_table(across, baseline=base, title=title))
         tables.append(across)
     if out is not None:
-        if out.is_dir() or not out.suffix:
-            written = write_dataset(dataset_frame(analyses), out)
+        if dataset:
+            written = write_dataset(dataset_frame(analyses), out, overwrite=overwrite)
         else:
-            written = write_table(tables, out)  # refuses a suffix other than .csv or .parquet
+            written = write_table(tables, out, overwrite=overwrite)
         console.print(f"wrote {written}")
 
 

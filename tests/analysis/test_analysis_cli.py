@@ -11,6 +11,7 @@ import pytest
 from analysis_helpers import paper_replay_frame, write_replay, write_session
 from typer.testing import CliRunner
 
+from hilrig import analysis
 from hilrig.analysis import PARTITIONS, AxisGroup, analyze, load_session, read_dataset
 from hilrig.cli import app
 
@@ -88,7 +89,13 @@ def test_a_folder_of_sessions_becomes_a_partitioned_dataset(tmp_path: Path) -> N
     assert frame["max_abs_offset"].notna().all()
     assert set(frame["rig"]) == {"emulated"}
 
-    again = _analyze(str(sessions / "S001"), "--out", str(out))  # replaces that partition only
+    refused = CliRunner().invoke(app, ["analyze", str(sessions / "S001"), "--out", str(out)])
+    part = out / "subject_id=S001" / "controller=fixed" / "session_id=a" / "part-0.parquet"
+    assert str(refused.exception) == (
+        f"{part}: already exists (this session's partition of the dataset); pass --overwrite "
+        "to replace it"
+    )
+    again = _analyze(str(sessions / "S001"), "--out", str(out), "--overwrite")  # that one only
     assert "wrote" in again
     assert len(read_dataset(out)) == len(frame)
 
@@ -142,3 +149,73 @@ def test_sessions_and_replays_together_each_use_a_baseline_they_have(tmp_path: P
 def test_an_empty_folder_has_nothing_to_analyse(tmp_path: Path) -> None:
     result = CliRunner().invoke(app, ["analyze", str(tmp_path)])
     assert "no .mcap sessions or .parquet replay results to analyse" in str(result.exception)
+
+
+def _refused(*args: str) -> str:
+    result = CliRunner().invoke(app, ["analyze", *args])
+    assert result.exit_code != 0 and result.exception is not None
+    return str(result.exception)
+
+
+def test_an_existing_output_is_refused_unless_overwrite(tmp_path: Path) -> None:
+    out = tmp_path / "comparison.csv"
+    out.write_text("keep me\n")
+    assert _refused(str(EXAMPLE), "--out", str(out)) == (
+        f"{out}: already exists; pass --overwrite to replace it"
+    )
+    assert out.read_text() == "keep me\n"
+    _analyze(str(EXAMPLE), "--out", str(out), "--overwrite")
+    assert set(pd.read_csv(out)["run"]) == {"adaptive"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["comparison.csv"]  # no temporaries
+
+
+def test_a_replay_result_or_an_input_is_never_replaced(tmp_path: Path) -> None:
+    replay = write_replay(tmp_path / "paper.parquet", paper_replay_frame(duration_s=7.0))
+    before = replay.read_bytes()
+    assert _refused(str(EXAMPLE), "--out", str(replay), "--overwrite") == (
+        f"{replay}: is a replay result; refusing to replace it, even with --overwrite"
+    )
+    assert _refused(str(replay), "--out", str(replay), "--overwrite") == (
+        f"--out {replay}: is also an input; write the results elsewhere"
+    )
+    assert replay.read_bytes() == before
+
+
+def test_outputs_are_checked_before_any_input_is_read(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def unread(*args: object, **kwargs: object) -> None:
+        raise AssertionError("an input was read before the output was checked")
+
+    monkeypatch.setattr(analysis, "load_sources", unread)
+    (tmp_path / "file").write_text("")
+    cases = [
+        (["--out", str(tmp_path / "x.json")], "write a .csv or a .parquet file"),
+        (["--out", str(tmp_path / "no" / "x.csv")], f"folder {tmp_path / 'no'} does not exist"),
+        (["--out", str(tmp_path / "file")], "the dataset goes in a folder, and this is a file"),
+    ]
+    for args, message in cases:
+        assert message in _refused(str(EXAMPLE), *args)
+
+
+def test_the_baseline_is_checked_before_the_analysis(monkeypatch: pytest.MonkeyPatch) -> None:
+    def unanalysed(*args: object, **kwargs: object) -> None:
+        raise AssertionError("analysed before the baseline was checked")
+
+    monkeypatch.setattr(analysis, "analyze", unanalysed)
+    assert _refused(str(EXAMPLE), "--baseline", "stiff") == (
+        "baseline 'stiff' is not a run here; runs: adaptive"
+    )
+
+
+def test_a_comparison_that_fails_to_write_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def failing(self: pd.DataFrame, where: Path, **kwargs: object) -> None:
+        Path(where).write_text("half")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(pd.DataFrame, "to_csv", failing)
+    out = tmp_path / "comparison.csv"
+    assert _refused(str(EXAMPLE), "--out", str(out)) == f"{out}: cannot write (disk full)"
+    assert list(tmp_path.iterdir()) == []

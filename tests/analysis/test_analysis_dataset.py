@@ -10,6 +10,7 @@ from analysis_helpers import paper_replay_frame, write_replay, write_session
 from hilrig.analysis import (
     PARTITIONS,
     analyze,
+    dataset,
     dataset_frame,
     load_replay,
     load_session,
@@ -17,6 +18,8 @@ from hilrig.analysis import (
     write_dataset,
 )
 from hilrig.errors import AnalysisError, RecordingError
+
+PARTITION_FILE = "session_id=__HIVE_DEFAULT_PARTITION__/part-0.parquet"
 
 
 def _replay_from(path: Path, origin: dict[str, object] | None) -> Path:
@@ -78,3 +81,41 @@ def test_the_dataset_goes_in_a_folder(tmp_path: Path) -> None:
     (tmp_path / "file").write_text("")
     with pytest.raises(AnalysisError, match="this is a file"):
         write_dataset(dataset_frame([analyze(source)]), tmp_path / "file")
+
+
+def test_partitions_are_written_all_or_none(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    source = load_replay(_replay_from(tmp_path / "replay.parquet", None))
+    frame = dataset_frame([analyze(source)])
+    write = dataset.pq.write_table
+    calls: list[Path] = []
+
+    def second_fails(table: object, where: Path) -> None:
+        calls.append(where)
+        if len(calls) == 2:
+            raise OSError("disk full")
+        write(table, where)
+
+    monkeypatch.setattr(dataset.pq, "write_table", second_fails)
+    root = tmp_path / "dataset"
+    with pytest.raises(AnalysisError) as caught:
+        write_dataset(frame, root)
+    assert str(caught.value) == f"{root}: cannot write the dataset (disk full)"
+    assert len(calls) == 2 and not root.exists()  # the folders it made are gone too
+
+
+def test_an_existing_partition_is_replaced_only_when_asked(tmp_path: Path) -> None:
+    source = load_replay(_replay_from(tmp_path / "replay.parquet", {"subject_id": "S003"}))
+    frame = dataset_frame([analyze(source)])
+    root = write_dataset(frame, tmp_path / "dataset")
+    part = root / "subject_id=S003" / "controller=adaptive" / PARTITION_FILE
+    with pytest.raises(AnalysisError) as caught:
+        write_dataset(frame, root)
+    assert str(caught.value) == (
+        f"{part}: already exists (this session's partition of the dataset); pass --overwrite "
+        "to replace it"
+    )
+    write_dataset(frame.assign(max_abs_offset=1.0), root, overwrite=True)
+    assert set(read_dataset(root)["max_abs_offset"]) == {1.0}
+    assert len(read_dataset(root)) == len(frame)
