@@ -28,7 +28,8 @@ if TYPE_CHECKING:
     from hilrig.rig.rig_process import FAULTS, RigProcess
     from hilrig.rig.rings import Rows
     from hilrig.rig.safety import SafetyClamp, SafetyConfig
-    from hilrig.rig.session import SessionConfig, SessionResult, record_session
+    from hilrig.rig.session import SessionResult, record_session
+    from hilrig.rig.session_config import SessionConfig
     from hilrig.rig.trajectory import Trajectory, make_trajectory
     from hilrig.rig.view_feed import VIEW_RATE_HZ, ViewBatch, ViewCounts, ViewForwarder
     from hilrig.rig.virtual import VirtualInput
@@ -44,7 +45,8 @@ _MODULES = {
     "rig_process": ("FAULTS", "RigProcess"),
     "rings": ("Rows",),
     "safety": ("SafetyClamp", "SafetyConfig"),
-    "session": ("SessionConfig", "SessionResult", "record_session"),
+    "session": ("SessionResult", "record_session"),
+    "session_config": ("SessionConfig",),
     "trajectory": ("Trajectory", "make_trajectory"),
     "view_feed": ("VIEW_RATE_HZ", "ViewBatch", "ViewCounts", "ViewForwarder"),
     "virtual": ("VirtualInput",),

@@ -21,6 +21,7 @@ from typing import Any
 
 from hilrig.emulator.rig import RigEndpoints
 from hilrig.errors import HilrigError
+from hilrig.outputs import check_new_file
 
 #: Where new recordings go unless told.
 RECORDINGS = Path("recordings")
@@ -41,13 +42,30 @@ def read_rig_file(path: Path) -> RigFile:
         config = tomllib.loads(path.read_text())
     except (OSError, tomllib.TOMLDecodeError) as err:
         raise HilrigError(f"{path}: cannot read the config ({err})") from err
-    options = dict(config.get("trajectory", {}))
+    table = config.get("trajectory", {})
+    if not isinstance(table, dict):
+        raise HilrigError(f"{path}: trajectory must be a table ([trajectory] with name = ...)")
+    options = dict(table)
     name = options.pop("name", None)
+    if name is not None:
+        _check_trajectory(path, str(name), options)
     return RigFile(
         endpoints=_endpoints(path, config["endpoints"]) if "endpoints" in config else None,
         trajectory=None if name is None else str(name),
         trajectory_options=options,
     )
+
+
+def _check_trajectory(path: Path, name: str, options: dict[str, object]) -> None:
+    """Build the trajectory once from a neutral pose: a bad waypoint is named with the file."""
+    import numpy as np
+
+    from hilrig.rig.trajectory import make_trajectory
+
+    try:
+        make_trajectory(name, np.eye(4), **options)
+    except HilrigError as err:
+        raise HilrigError(f"{path}: [trajectory] {err}") from None
 
 
 def _endpoints(path: Path, table: Any) -> RigEndpoints:
@@ -64,7 +82,9 @@ def _endpoints(path: Path, table: Any) -> RigEndpoints:
 
 
 def session_path(out: Path | None, stem: str) -> Path:
-    """``out``, or ``recordings/<stem>-<local date-time>.mcap``; its folder is made."""
+    """``out``, or ``recordings/<stem>-<local date-time>.mcap``: a new file (checked, not made:
+    the session makes it and its folder when it starts). Raises OutputError (one line) if a file
+    is there already or its folder cannot be written or made."""
     path = out or RECORDINGS / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
-    path.parent.mkdir(parents=True, exist_ok=True)
+    check_new_file(path, create_folder=True)
     return path

@@ -17,6 +17,9 @@ from hilrig.recording.samples import EventKind, EventRecord
 from hilrig.rig.clamp_kernels import Clamp
 
 GROUPS = (("end effector", 0), ("joints", 3))  # (name, first axis) of each axis group
+#: What a device's data going stale means, and what limiting a command does (docs/rig.md).
+STALE = "stale or lost: the robot holds its pose until the data is fresh again"
+CLAMPED = " (the commanded motion was limited to stay safe)"
 
 
 class EventDetector:
@@ -49,7 +52,7 @@ class EventDetector:
         if ok == before:
             return
         self._links[device] = ok
-        detail = "data fresh again: tracking resumes" if ok else "stale or lost: holding pose"
+        detail = "data fresh again: tracking resumes" if ok else STALE
         self._emit(EventRecord(t_ns, EventKind.FAULT, device, detail))
 
     def clamp(self, flags: int, t_ns: int) -> None:
@@ -58,7 +61,7 @@ class EventDetector:
             return
         self._clamp = flags
         if flags:
-            detail = f"clamp engaged: {clamp_names(flags)}"
+            detail = f"clamp engaged: {clamp_names(flags)}{CLAMPED}"
             self._emit(EventRecord(t_ns, EventKind.FAULT, "safety", detail))
 
     def fault(self, source: str, detail: str, t_ns: int, *, value: float = float("nan")) -> None:

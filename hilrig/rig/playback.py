@@ -15,7 +15,7 @@ from hilrig.emulator.rig import RigEndpoints
 from hilrig.rig.config_file import session_path
 from hilrig.rig.kinds import RigKind
 from hilrig.rig.loop import LoopConfig
-from hilrig.rig.session import SessionConfig
+from hilrig.rig.session_config import SessionConfig
 from hilrig.rig.virtual import VirtualInput
 
 #: Seconds the session goes on after the trace has played, for the robot to recover.

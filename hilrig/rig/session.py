@@ -19,109 +19,47 @@ unwinds in reverse order.
 
 from __future__ import annotations
 
+import contextlib
 import gc
-import io
-import json
 import threading
 import time
 from collections.abc import Callable
 from contextlib import ExitStack
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from hilrig.drivers.ft.gravity import GravityCompensator, ToolLoad
+from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.drivers.ft.link import FtSerial
 from hilrig.drivers.ft.wire import FtSample
 from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
 from hilrig.drivers.robot_state.link import ReceivedState, RobotStateClient
 from hilrig.emulator.rig import RigConfig, RigEndpoints
-from hilrig.emulator.scenarios import scenario as make_scenario
-from hilrig.errors import HilrigError, LinkError, RecordingError
-from hilrig.recording import Attachment, SessionInfo, validate_subject_id
+from hilrig.errors import LinkError, OutputError, RecordingError
+from hilrig.recording import SessionInfo
 from hilrig.recording.samples import EventRecord
 from hilrig.rig.device_io import DeviceIO
 from hilrig.rig.kinds import RigKind
 from hilrig.rig.live_port import LiveReportLike, LiveViewPort
-from hilrig.rig.loop import ControlLoop, LoopConfig, LoopSummary
+from hilrig.rig.loop import ControlLoop, LoopSummary
 from hilrig.rig.recorder_feed import RecorderFeed
 from hilrig.rig.recorder_process import RecorderProcess
 from hilrig.rig.records import AXIS_NAMES
 from hilrig.rig.rig_process import RigCounters, RigProcess
 from hilrig.rig.safety import SafetyClamp, SafetyConfig
+from hilrig.rig.session_config import SessionConfig
 from hilrig.rig.tick import warm_up
 from hilrig.rig.trajectory import make_trajectory
-from hilrig.rig.virtual import VirtualInput
 from hilrig.robot import RobotModel
 
-EMULATED_TOOL = ToolLoad(mass_kg=0.5, com_in_sensor_m=(0.0, 0.0, 0.05))
+__all__ = ["STARTUP_RING_ROWS", "SessionConfig", "SessionResult", "record_session"]
 STARTUP_RING_ROWS = 16384  # 16 s at 1 kHz: samples read before the recorder has its file open
 FIRST_SAMPLE_TIMEOUT_S = 5.0
 RECORDER_READY_TIMEOUT_S = 60.0
 QUIET_S = 0.05  # at a session's end: a link silent this long has delivered all it sent
 MAX_DRAIN_S = 2.0
-
-
-@dataclass(frozen=True)
-class SessionConfig:
-    """One session: who (pseudonym), what (scenario, trajectory, controller), how long, where.
-
-    ``rig`` is "emulated" (started here) or "aubo" with ``endpoints`` of the real devices.
-    """
-
-    out: Path
-    subject_id: str
-    scenario: str = "paper-end-effector"
-    rig: RigKind = RigKind.EMULATED
-    endpoints: RigEndpoints | None = None
-    duration_s: float | None = 20.0
-    trajectory: str = "circle"
-    trajectory_options: dict[str, object] = field(default_factory=dict)  # e.g. waypoints' points
-    loop: LoopConfig = field(default_factory=LoopConfig)
-    tool: ToolLoad = EMULATED_TOOL
-    tare_s: float = 0.2
-    session_id: str = ""
-    virtual: VirtualInput | None = None  # a recorded trace played as a virtual collision
-    virtual_source: str = ""  # where that trace came from (file, start, duration)
-
-    def __post_init__(self) -> None:
-        try:
-            object.__setattr__(self, "rig", RigKind(self.rig))
-        except ValueError:
-            known = ", ".join(kind.value for kind in RigKind)
-            raise HilrigError(f"rig {self.rig!r} is not one of: {known}") from None
-        if self.rig is RigKind.AUBO and self.endpoints is None:
-            raise HilrigError("rig aubo needs its endpoints (a config file)")
-
-    def as_json(self) -> str:
-        """The configuration as JSON, attached to the recording (the virtual trace summarised;
-        its values are attached as virtual_input.npy; the output's folder is not kept)."""
-        record = asdict(replace(self, virtual=None))
-        record["out"] = self.out.name
-        if self.virtual is not None:
-            record["virtual"] = {
-                "rows": self.virtual.force.shape[0],
-                "dt_s": self.virtual.dt_s,
-                "delay_s": self.virtual.delay_s,
-            }
-        return json.dumps(record, indent=2, default=str, sort_keys=True)
-
-    def attachments(self) -> list[Attachment]:
-        """The config (JSON), the scenario name and, when one plays, the virtual trace (.npy)."""
-        files = [
-            Attachment("config.json", "application/json", self.as_json().encode()),
-            Attachment("scenario.txt", "text/plain", self.scenario.encode()),
-        ]
-        if self.virtual is not None:
-            buffer = io.BytesIO()
-            np.save(buffer, self.virtual.force)
-            files.append(Attachment("virtual_input.npy", "application/x-npy", buffer.getvalue()))
-        return files
-
-    def session_id_or_now(self) -> str:
-        return self.session_id or time.strftime("%Y%m%d-%H%M%S")
 
 
 @dataclass
@@ -137,6 +75,7 @@ class SessionResult:
     recorder_error: str = ""  # why the file may be truncated ("" when it closed cleanly)
     view: LiveReportLike | None = None
     rig_counters: RigCounters | None = None  # what the emulated rig sent (None: a real rig)
+    ended_by: str = ""  # why the session ended before its time, e.g. the recorder died
 
 
 def record_session(
@@ -151,13 +90,18 @@ def record_session(
 ) -> SessionResult:
     """Run and record one session; raises HilrigError (one line) when it cannot start.
 
+    Every input is checked (:meth:`SessionConfig.check`) before anything starts, and the file is
+    created only once the devices are connected and the sensor tared: a session that cannot
+    start leaves nothing behind (not even the folder it made). Once the file is open it is kept
+    whatever happens: an error raised later carries a note saying where the recording is (and,
+    if the recorder died, how to ``hilrig recover`` it).
+
     ``live`` is the live view (built by the caller, e.g. ``hilrig.viz.live.LiveView``);
     ``on_start`` gets the loop before it ticks (e.g. for a status line), ``on_event`` every
     event (called on the tick: it must only queue), ``rig_ready`` and ``recorder_ready`` the
     emulated rig and recorder processes (fault injection in tests).
     """
-    validate_subject_id(config.subject_id)
-    make_scenario(config.scenario)  # an unknown scenario fails before anything starts
+    config.check()
     stop = stop or threading.Event()
     events: list[EventRecord] = []
 
@@ -172,6 +116,8 @@ def record_session(
     gc.collect()  # and the collector's big pass: the loop's own (realtime_python) is then short
     gc.freeze()
     with ExitStack() as stack:
+        made = _make_folders(config.out)
+        stack.callback(_remove_empty, made)  # at the end, unless the file is there
         if live is not None:  # first: its start-up must not delay the rig's scenario
             stack.callback(live.close)
             live.start()
@@ -187,6 +133,7 @@ def record_session(
             view=None if live is None else live.queue,
         )
         recorder.spawn()  # imports while the rig comes up
+        stack.callback(_stop_quietly, recorder)  # a session that cannot start: no recorder left
         rig = None
         if config.rig is RigKind.EMULATED:
             # the scenario's clock starts with the first tick, however long start-up takes
@@ -229,30 +176,74 @@ def record_session(
             },
         )
         _wait_for_recorder(devices, recorder)
-        if recorder_ready is not None:
-            recorder_ready(recorder)
-        if on_start is not None:
-            on_start(loop)
-        if rig is not None:
-            rig.start_scenario()
-        recorder_error = ""
-        messages: int | None = None
-        view = None
+        # the file is open: from here on it is kept, whatever happens
+        failure: BaseException | None = None
         try:
+            if recorder_ready is not None:
+                recorder_ready(recorder)
+            if on_start is not None:
+                on_start(loop)
+            if rig is not None:
+                rig.start_scenario()
             summary = loop.run(config.duration_s, stop)
             _read_to_the_end(devices, rig)
-        finally:
-            try:
-                messages, drops = recorder.stop()
-            except RecordingError as err:  # the recorder died: the file ends where it did
-                recorder_error = f"{err}; `hilrig recover {config.out} -o OUT` restores it"
-                drops = feed.drops
-            if live is not None:  # after the recorder: its last batch is queued by now
-                view = live.stop(recorder.view_counts)
+        except BaseException as err:  # noted and raised once the file is closed
+            failure = err
+        recorder_error = ""
+        messages: int | None = None
+        try:
+            messages, drops = recorder.stop()
+        except RecordingError as err:  # the recorder died: the file ends where it did
+            recorder_error = f"{err}; `hilrig recover {config.out} -o OUT` restores it"
+            drops = feed.drops
+        if failure is not None:
+            kept = recorder_error or f"what was recorded until then is in {config.out}"
+            failure.add_note(kept)
+            raise failure
+        view = None
+        if live is not None:  # after the recorder: its last batch is queued by now
+            view = live.stop(recorder.view_counts)
     counters = None if rig is None else rig.final_counters
     return SessionResult(
-        config.out, summary, messages, drops, events, recorder_error, view, counters
+        config.out,
+        summary,
+        messages,
+        drops,
+        events,
+        recorder_error,
+        view,
+        counters,
+        loop.ended_by,
     )
+
+
+def _make_folders(path: Path) -> list[Path]:
+    """Make the missing folders of ``path`` (checked writable before); the ones made, innermost
+    first. Raises OutputError naming the folder that cannot be made."""
+    missing = [p for p in path.parents if not p.exists()]
+    for folder in reversed(missing):
+        try:
+            folder.mkdir()
+        except FileExistsError:
+            continue
+        except OSError as err:
+            _remove_empty(missing[missing.index(folder) + 1 :])
+            raise OutputError(f"{path}: folder {folder} cannot be made ({err.strerror})") from None
+    return missing
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove each of ``folders`` (innermost first) that is empty."""
+    for folder in folders:
+        with contextlib.suppress(OSError):
+            folder.rmdir()
+
+
+def _stop_quietly(recorder: RecorderProcess) -> None:
+    """Stop a recorder the session did not stop itself (it could not start): it then exits
+    without a file, or finishes the one it opened."""
+    with contextlib.suppress(RecordingError):
+        recorder.stop()
 
 
 def _connect(stack: ExitStack, endpoints: RigEndpoints, feed: RecorderFeed) -> DeviceIO:

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from hilrig.emulator.rig import RigEndpoints
-from hilrig.errors import HilrigError
+from hilrig.errors import HilrigError, OutputError
 from hilrig.rig.config_file import read_rig_file, session_path
 
 
@@ -42,10 +42,22 @@ def test_a_bad_file_is_named(tmp_path: Path, text: str, message: str) -> None:
         read_rig_file(path)
 
 
-def test_session_path_makes_its_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_session_path_checks_but_makes_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     given = tmp_path / "new" / "s.mcap"
-    assert session_path(given, "S001") == given and given.parent.is_dir()
+    assert session_path(given, "S001") == given and not given.parent.exists()
     monkeypatch.chdir(tmp_path)
     default = session_path(None, "S001-replay")
-    assert default.parent == Path("recordings") and default.parent.is_dir()
+    assert default.parent == Path("recordings") and not default.parent.exists()
     assert default.name.startswith("S001-replay-") and default.suffix == ".mcap"
+    (tmp_path / "taken.mcap").write_bytes(b"")
+    with pytest.raises(OutputError, match=r"taken\.mcap: already exists; refusing to overwrite"):
+        session_path(tmp_path / "taken.mcap", "S001")
+
+
+def test_a_trajectory_table_that_does_not_build_is_named_with_the_file(tmp_path: Path) -> None:
+    path = tmp_path / "rig.toml"
+    path.write_text('[trajectory]\nname = "waypoints"\npoints = [[1.0, 0.0, 0.0]]\n')
+    with pytest.raises(HilrigError, match=rf"^{path}: \[trajectory\] trajectory option points"):
+        read_rig_file(path)

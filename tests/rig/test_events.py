@@ -27,7 +27,28 @@ def test_clamp_events_name_the_flags_once_per_change() -> None:
     detector = EventDetector(on_event=events.append)
     for t_ns, flags in enumerate([0, 32, 32, 32, 0, 2 | 4, 2 | 4, 0]):
         detector.clamp(flags, t_ns)
+    limited = " (the commanded motion was limited to stay safe)"
     assert [(e.t_ns, e.kind, e.source, e.detail) for e in events] == [
-        (1, EventKind.FAULT, "safety", "clamp engaged: controlled stop"),
-        (5, EventKind.FAULT, "safety", "clamp engaged: velocity limit, acceleration limit"),
+        (1, EventKind.FAULT, "safety", f"clamp engaged: controlled stop{limited}"),
+        (
+            5,
+            EventKind.FAULT,
+            "safety",
+            f"clamp engaged: velocity limit, acceleration limit{limited}",
+        ),
+    ]
+
+
+def test_a_stale_link_says_the_robot_holds_its_pose_and_when_it_resumes() -> None:
+    events: list[EventRecord] = []
+    detector = EventDetector(on_event=events.append)
+    for t_ns, ok in enumerate([True, False, False, True, True]):
+        detector.link("wrist F/T sensor", ok, t_ns)
+    assert [(e.t_ns, e.source, e.detail) for e in events] == [
+        (
+            1,
+            "wrist F/T sensor",
+            "stale or lost: the robot holds its pose until the data is fresh again",
+        ),
+        (3, "wrist F/T sensor", "data fresh again: tracking resumes"),
     ]

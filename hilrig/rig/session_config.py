@@ -1,0 +1,109 @@
+"""A session's configuration: who, what, how long, where; checked before anything starts, and
+attached to its recording as ``config.json`` (file names only: no folder, which may hold a
+person's name)."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import re
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from hilrig.drivers.ft.gravity import ToolLoad
+from hilrig.emulator.rig import RigEndpoints
+from hilrig.emulator.scenarios import scenario as make_scenario
+from hilrig.errors import HilrigError
+from hilrig.outputs import check_new_file
+from hilrig.recording import Attachment, validate_subject_id
+from hilrig.rig.kinds import RigKind
+from hilrig.rig.loop import LoopConfig
+from hilrig.rig.trajectory import make_trajectory
+from hilrig.rig.virtual import VirtualInput
+
+EMULATED_TOOL = ToolLoad(mass_kg=0.5, com_in_sensor_m=(0.0, 0.0, 0.05))
+
+
+@dataclass(frozen=True)
+class SessionConfig:
+    """One session: who (pseudonym), what (scenario, trajectory, controller), how long, where.
+
+    ``rig`` is "emulated" (started here) or "aubo" with ``endpoints`` of the real devices.
+    """
+
+    out: Path
+    subject_id: str
+    scenario: str = "paper-end-effector"
+    rig: RigKind = RigKind.EMULATED
+    endpoints: RigEndpoints | None = None
+    duration_s: float | None = 20.0
+    trajectory: str = "circle"
+    trajectory_options: dict[str, object] = field(default_factory=dict)  # e.g. waypoints' points
+    loop: LoopConfig = field(default_factory=LoopConfig)
+    tool: ToolLoad = EMULATED_TOOL
+    tare_s: float = 0.2
+    session_id: str = ""
+    virtual: VirtualInput | None = None  # a recorded trace played as a virtual collision
+    virtual_source: str = ""  # where that trace came from (file, start, duration)
+
+    def __post_init__(self) -> None:
+        try:
+            object.__setattr__(self, "rig", RigKind(self.rig))
+        except ValueError:
+            known = ", ".join(kind.value for kind in RigKind)
+            raise HilrigError(f"rig {self.rig!r} is not one of: {known}") from None
+        if self.rig is RigKind.AUBO and self.endpoints is None:
+            raise HilrigError("rig aubo needs its endpoints (a config file)")
+        duration = self.duration_s
+        if duration is not None and not (math.isfinite(duration) and duration > 0):
+            raise HilrigError(f"duration {duration} s: must be a finite number of seconds > 0")
+
+    def check(self) -> None:
+        """Raise HilrigError (one line) for anything that would fail later: subject, scenario,
+        trajectory and its options, controller parameters, and the output (a new file in a
+        folder that exists, or can be made, and is writable). Nothing is created."""
+        validate_subject_id(self.subject_id)
+        make_scenario(self.scenario)
+        make_trajectory(self.trajectory, np.eye(4), **self.trajectory_options)
+        self.loop.controller()
+        check_new_file(self.out, create_folder=True)
+
+    def as_json(self) -> str:
+        """The configuration as JSON, attached to the recording (the virtual trace summarised;
+        its values are attached as virtual_input.npy). Paths keep only their file names: a
+        folder may hold a person's name (/home/jane.doe/...)."""
+        record = asdict(replace(self, virtual=None))
+        record["out"] = self.out.name
+        record["virtual_source"] = without_folders(self.virtual_source)
+        if self.virtual is not None:
+            record["virtual"] = {
+                "rows": self.virtual.force.shape[0],
+                "dt_s": self.virtual.dt_s,
+                "delay_s": self.virtual.delay_s,
+            }
+        return json.dumps(record, indent=2, default=str, sort_keys=True)
+
+    def attachments(self) -> list[Attachment]:
+        """The config (JSON), the scenario name and, when one plays, the virtual trace (.npy)."""
+        files = [
+            Attachment("config.json", "application/json", self.as_json().encode()),
+            Attachment("scenario.txt", "text/plain", self.scenario.encode()),
+        ]
+        if self.virtual is not None:
+            buffer = io.BytesIO()
+            np.save(buffer, self.virtual.force)
+            files.append(Attachment("virtual_input.npy", "application/x-npy", buffer.getvalue()))
+        return files
+
+    def session_id_or_now(self) -> str:
+        return self.session_id or time.strftime("%Y%m%d-%H%M%S")
+
+
+def without_folders(text: str) -> str:
+    """``text`` with every path in it cut to its last part (``/home/jane.doe/s.mcap`` ->
+    ``s.mcap``)."""
+    return re.sub(r"[^\s'\"]*[/\\]([^\s'\"/\\]*)", r"\1", text)
