@@ -61,11 +61,17 @@ def print_line(label: str, style: str, text: str) -> None:
     _stderr().print(Text.assemble((f"{label}: ", style), one_line(text)))
 
 
+def message_of(err: BaseException) -> str:
+    """``err``'s message and its notes (e.g. where a session's recording was kept), one line."""
+    notes = getattr(err, "__notes__", [])
+    return "; ".join([one_line(str(err)) or "(no message)", *map(one_line, notes)])
+
+
 def print_error(err: HilrigError) -> None:
     """``error: <message>`` on stderr, one line whatever the terminal's width."""
     if SETTINGS.debug:
         traceback.print_exception(err)
-    print_line("error", "bold red", str(err))
+    print_line("error", "bold red", message_of(err))
 
 
 def print_usage_error(message: str, command: str | None) -> None:
@@ -83,11 +89,10 @@ def print_bug(err: BaseException) -> None:
         hint = "please report it with the traceback above"
     else:
         hint = "please report it; run again with hilrig --debug ... for the full traceback"
-    message = one_line(str(err)) or "(no message)"
     print_line(
         "error",
         "bold red",
-        f"unexpected {type(err).__name__}: {message}. This is a bug in hilrig: {hint}",
+        f"unexpected {type(err).__name__}: {message_of(err)}. This is a bug in hilrig: {hint}",
     )
 
 

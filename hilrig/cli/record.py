@@ -70,9 +70,7 @@ def record(
     import threading
     import time
 
-    from rich.console import Console
-
-    from hilrig.cli.session_output import SessionWatch, print_result
+    from hilrig.cli.session_output import SessionWatch, print_result, summary_console
     from hilrig.errors import HilrigError
     from hilrig.rig import LoopConfig, SessionConfig, record_session
     from hilrig.rig.config_file import RigFile, read_rig_file, session_path
@@ -103,16 +101,18 @@ def record(
         result = record_session(
             session, stop=stop, live=live, on_start=watch.on_start, on_event=watch.on_event
         )
-    print_result(Console(soft_wrap=True), result)
+    print_result(summary_console(), result)
     if result.recorder_error:
         raise HilrigError(f"the recording is incomplete: {result.recorder_error}")
+    if result.ended_by:
+        raise HilrigError(f"the session ended early: {result.ended_by}; see {result.path}")
 
 
 def view_sink(view: bool, view_url: str | None, view_save: Path | None) -> Sink | None:
     """The live view's one destination (None: no live view), checked; raises HilrigError."""
     from hilrig.errors import HilrigError
     from hilrig.viz.live import check_sink
-    from hilrig.viz.sinks import Sink, SinkKind
+    from hilrig.viz.sinks import Sink, SinkKind, check_display
 
     options = (("--view", view), ("--view-url", view_url), ("--view-save", view_save))
     chosen = [name for name, given in options if given]
@@ -124,6 +124,7 @@ def view_sink(view: bool, view_url: str | None, view_save: Path | None) -> Sink 
         sink = Sink(SinkKind.SAVE, path=view_save)
     elif view:
         sink = Sink(SinkKind.SPAWN)
+        check_display(sink.port)  # at once, not when the viewer gives up
     else:
         return None
     check_sink(sink)

@@ -1,11 +1,14 @@
-"""A session on the terminal: its events as they come, a status line, and its summary."""
+"""A session on the terminal: its events as they come (a few per second and source at most), a
+status line, and its summary in lines that fit 80 columns."""
 
 from __future__ import annotations
 
+import math
 import sys
 import threading
 import time
 from collections import deque
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, TextIO
 
 from rich.console import Console
@@ -18,28 +21,95 @@ if TYPE_CHECKING:
 
 #: Seconds between two status lines.
 STATUS_PERIOD_S = 0.5
+#: Event lines per source in one second of the session; the rest are counted in one line.
+LINES_PER_SOURCE_S = 5
+
+
+@dataclass
+class _Window:
+    """One source's events in one second of the session: lines shown and events held back."""
+
+    second: int
+    shown: int = 0
+    held: int = 0
+
+
+class EventLines:
+    """The console's lines for a session's events: at most ``per_second`` lines per source in
+    each second of session time; the others of that second are said in one line once it is over
+    (``... 12 more safety events in the last second (all in /events)``). The file keeps every
+    event: only the console is thinned."""
+
+    def __init__(self, per_second: int = LINES_PER_SOURCE_S) -> None:
+        self.per_second = per_second
+        self.windows: dict[str, _Window] = {}
+
+    def add(self, t_s: float, record: EventRecord) -> list[str]:
+        """The lines to print for ``record``, at ``t_s`` s into the session (none if held)."""
+        second = math.floor(t_s)
+        window = self.windows.get(record.source)
+        lines = []
+        if window is None or window.second != second:
+            if window is not None:
+                lines += self._held_line(record.source, window)
+            window = self.windows[record.source] = _Window(second)
+        if window.shown < self.per_second:
+            window.shown += 1
+            lines.append(event_line(t_s, record))
+        else:
+            window.held += 1
+        return lines
+
+    def due(self, now_s: float = math.inf) -> list[str]:
+        """The lines of held-back events whose second ended before ``now_s`` (all by default)."""
+        lines = []
+        for source, window in self.windows.items():
+            if window.second + 1 <= now_s:
+                lines += self._held_line(source, window)
+        return lines
+
+    @staticmethod
+    def _held_line(source: str, window: _Window) -> list[str]:
+        held, window.held = window.held, 0
+        if not held:
+            return []
+        noun = "event" if held == 1 else "events"
+        return [
+            f"{window.second + 1:7.2f} s  ... {held} more {source} {noun} in the last second "
+            "(all in /events)"
+        ]
+
+
+def event_line(t_s: float, record: EventRecord) -> str:
+    """``   4.02 s  collision start: controller (end effector)``, one line."""
+    kind = record.kind.name.lower().replace("_", " ")
+    where = f" ({record.axis})" if record.axis else ""
+    detail = f": {record.detail}" if record.detail else ""
+    return f"{t_s:7.2f} s  {kind}: {record.source}{where}{detail}".replace("\n", " ")
 
 
 class SessionWatch:
-    """Prints a running session's events and, on a terminal, its status line twice a second,
-    from a thread of its own: the session's callbacks (:meth:`on_start`, :meth:`on_event`, called
-    from the loop) only store. Every event is printed, the last ones when the ``with`` ends."""
+    """Prints a running session's events (:class:`EventLines`) and, on a terminal, its status
+    line twice a second, from a thread of its own: the session's callbacks (:meth:`on_start`,
+    :meth:`on_event`, called from the loop) only store. The last lines are printed when the
+    ``with`` ends."""
 
     def __init__(self, stream: TextIO | None = None) -> None:
         self.stream = stream or sys.stderr
         self.show_status = self.stream.isatty()
-        self.started = time.monotonic()
+        self.started_ns = time.monotonic_ns()
         self.loop: ControlLoop | None = None
-        self.pending: deque[tuple[float, EventRecord]] = deque()
+        self.pending: deque[EventRecord] = deque()
+        self.lines = EventLines()
         self.done = threading.Event()
         self.printer = threading.Thread(target=self._print, daemon=True, name="progress")
 
     def on_start(self, loop: ControlLoop) -> None:
-        self.started = time.monotonic()
+        self.started_ns = time.monotonic_ns()
         self.loop = loop
 
     def on_event(self, record: EventRecord) -> None:
-        self.pending.append((time.monotonic() - self.started, record))
+        self.pending.append(record)
 
     def __enter__(self) -> SessionWatch:
         self.printer.start()
@@ -55,27 +125,31 @@ class SessionWatch:
         self.printer.join(timeout=2)
         if self.show_status:
             self.stream.write("\r\033[K")
+            self.stream.flush()
 
     def _print(self) -> None:
         while True:
             finished = self.done.wait(STATUS_PERIOD_S)
-            while self.pending:  # drained once more after the session: no event left unprinted
-                t_s, record = self.pending.popleft()
-                where = f" ({record.axis})" if record.axis else ""
-                text = f"{t_s:7.2f} s  {record.kind.name.lower()}: {record.source}{where}"
-                line = f"{text} {record.detail}".rstrip()
+            lines = []
+            while self.pending:  # drained once more after the session: no event left unsaid
+                record = self.pending.popleft()
+                lines += self.lines.add((record.t_ns - self.started_ns) / 1e9, record)
+            now_s = math.inf if finished else (time.monotonic_ns() - self.started_ns) / 1e9
+            lines += self.lines.due(now_s)
+            for line in lines:
                 self.stream.write(f"\r\033[K{line}\n" if self.show_status else f"{line}\n")
             if finished:
+                self.stream.flush()
                 return
             if self.show_status and self.loop is not None:
-                self.stream.write(f"\r\033[K{status_line(self.loop, self.started)}")
+                self.stream.write(f"\r\033[K{status_line(self.loop, self.started_ns)}")
             self.stream.flush()
 
 
-def status_line(loop: ControlLoop, started: float) -> str:
+def status_line(loop: ControlLoop, started_ns: int) -> str:
     """One line: time, tick rate, lateness, force, offset, contact, hold reason, drops."""
     s = loop.status
-    elapsed = max(time.monotonic() - started, 1e-9)
+    elapsed = max((time.monotonic_ns() - started_ns) / 1e9, 1e-9)
     line = (
         f"{elapsed:6.1f} s  {s.ticks / elapsed:6.0f} Hz  late {s.lateness_us:5.0f} us  "
         f"|f| {s.force_n:5.1f} N  |e| {s.offset_mm:5.1f} mm  {s.contact:10s}"
@@ -87,34 +161,45 @@ def status_line(loop: ControlLoop, started: float) -> str:
     return line
 
 
+def summary_console() -> Console:
+    """stdout for summaries: lines never wrapped by rich, user text never read as markup."""
+    return Console(soft_wrap=True, markup=False, highlight=False)
+
+
 def print_result(console: Console, result: SessionResult) -> None:
-    """The session's summary: file, ticks and timing, messages and drops, the emulated rig's
-    own lateness and the live view's batches."""
+    """The session's summary, each line within 80 columns (but the file's name): file, ticks
+    and timing, messages and drops, why it ended early, the emulated rig's own lateness and the
+    live view's batches."""
     summary = result.summary
     late = summary.lateness.summary_us()
     s2c = summary.sensor_to_command.summary_us()
     ack = summary.sensor_to_ack.summary_us()
     missed_pct = 100 * summary.missed_deadlines / max(summary.ticks, 1)
+    written = "unknown" if result.messages_written is None else result.messages_written
     lines = [
         f"recorded {result.path}",
-        f"  {summary.ticks} ticks, missed deadlines {summary.missed_deadlines} "
-        f"({missed_pct:.3f} %), lateness p50 {late['p50']:.0f} us p99 {late['p99']:.0f} us "
-        f"max {late['max']:.0f} us",
-        f"  sensor-to-command (request sent) p50 {s2c['p50']:.0f} us p99 {s2c['p99']:.0f} us, "
-        f"to its acknowledgement p50 {ack['p50']:.0f} us p99 {ack['p99']:.0f} us",
-        f"  {result.messages_written or 'unknown'} messages written, {result.drops} dropped; "
-        f"{len(result.events)} events, {result.summary.hold_ticks} hold ticks",
+        f"  {summary.ticks} ticks, {summary.missed_deadlines} missed deadlines "
+        f"({missed_pct:.3f} %), {summary.hold_ticks} hold ticks",
+        f"  lateness p50 {late['p50']:.0f} us, p99 {late['p99']:.0f} us, max {late['max']:.0f} us",
+        f"  sensor to command sent p50 {s2c['p50']:.0f} us, p99 {s2c['p99']:.0f} us",
+        f"  sensor to command acknowledged p50 {ack['p50']:.0f} us, p99 {ack['p99']:.0f} us",
+        f"  {written} messages written, {result.drops} dropped; {len(result.events)} events",
     ]
+    if result.ended_by:
+        lines.append(f"  ended early: {result.ended_by}; the robot was held")
+    if result.recorder_error:
+        lines.append(f"  the file is incomplete: {result.recorder_error}")
     rig = result.rig_counters
     if rig is not None:
         p50, p99, _ = rig.slot_lateness_us
-        lines.append(
-            f"  emulated rig: {rig.ft_frames_sent} F/T frames and {rig.joint_frames_sent} joint "
-            f"states sent, its own slots late p50 {p50:.0f} us p99 {p99:.0f} us"
-        )
+        lines += [
+            f"  emulated rig: {rig.ft_frames_sent} F/T frames, {rig.joint_frames_sent} joint "
+            "states sent",
+            f"  emulated rig's own slots late p50 {p50:.0f} us, p99 {p99:.0f} us",
+        ]
     view = result.view
     if view is not None:
         line = f"  live view: {view.shown} batches shown, {view.sent} sent, {view.dropped} dropped"
         lines.append(line + (f"; {view.problem}" if view.problem else ""))
     for line in lines:
-        console.print(line, highlight=False)
+        console.print(line, markup=False, highlight=False)

@@ -1,6 +1,7 @@
 """``hilrig record`` as a lab runs it: a subprocess, a config file, stopped by SIGTERM; its live
 view options."""
 
+import os
 import re
 import signal
 import subprocess
@@ -12,7 +13,7 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
-from hilrig.recording import inspect, load
+from hilrig.recording import inspect, load, recover
 
 HILRIG = Path(sys.executable).with_name("hilrig")
 
@@ -99,3 +100,132 @@ def test_a_bad_live_view_option_is_one_line_before_anything_starts(
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and message in result.stderr
     assert not out.exists()
+
+
+def record(tmp_path: Path, *args: str, **env: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [str(HILRIG), "record", "--subject", "S003", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+        env={**os.environ, **env},
+    )
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--duration", "nan"], "duration nan s: must be a finite number of seconds > 0"),
+        (["--duration", "inf"], "duration inf s: must be a finite number of seconds > 0"),
+        (["--duration", "0"], "duration 0.0 s: must be a finite number of seconds > 0"),
+        (["--rate", "0"], "loop rate 0.0 Hz is not within 1..10000 Hz"),
+        (["--rate", "nan"], "loop rate nan Hz is not within 1..10000 Hz"),
+        (
+            ["--trajectory", "nope"],
+            "unknown trajectory 'nope'; known: circle, square, waypoints, hold",
+        ),
+        (
+            ["--config", "waypoint.toml"],
+            "waypoint.toml: [trajectory] trajectory option points[0] must be 4 finite numbers, "
+            "got [1.0, 'a', 0.0, 0.0]",
+        ),
+        (
+            ["--config", "flat.toml"],
+            "flat.toml: trajectory must be a table ([trajectory] with name = ...)",
+        ),
+        (
+            ["--params", "nope"],
+            "unknown preset 'nope'; known: adaptive, adaptive-joint, paper-end-effector, "
+            "paper-joint",
+        ),
+        (["--out", "afile/s.mcap"], "afile/s.mcap: afile is not a folder"),
+        (["--out", "kept.mcap"], "kept.mcap: already exists; refusing to overwrite it"),
+    ],
+)
+def test_a_bad_input_is_one_line_before_any_file_is_made(
+    tmp_path: Path, args: list[str], message: str
+) -> None:
+    (tmp_path / "waypoint.toml").write_text(
+        '[trajectory]\nname = "waypoints"\npoints = [[1.0, "a", 0.0, 0.0]]\n'
+    )
+    (tmp_path / "flat.toml").write_text('trajectory = "circle"\n')
+    (tmp_path / "afile").write_bytes(b"")
+    (tmp_path / "kept.mcap").write_bytes(b"a volunteer's session")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    out = [] if "--out" in args else ["--out", "new/session.mcap"]
+    result = record(tmp_path, *out, *args)
+    assert (result.returncode, result.stdout) == (2, "")
+    assert result.stderr == f"error: {message}\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == before  # no file, no folder
+    assert (tmp_path / "kept.mcap").read_bytes() == b"a volunteer's session"
+
+
+def test_the_live_view_without_a_display_is_refused_at_once(tmp_path: Path) -> None:
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    result = subprocess.run(
+        [str(HILRIG), "record", "--subject", "S003", "--out", "s.mcap", "--view"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+        env=env,
+    )
+    assert result.returncode == 2
+    assert result.stderr == (
+        "error: no display for the Rerun viewer (DISPLAY and WAYLAND_DISPLAY are not set): save "
+        "to a file or use the web viewer or a viewer's URL\n"
+    )
+    assert not list(tmp_path.iterdir())
+
+
+def holder_of(pid: int, path: Path) -> int:
+    """The child process of ``pid`` that has ``path`` open (the recorder of that file)."""
+    children = Path(f"/proc/{pid}/task/{pid}/children").read_text().split()
+    for child in map(int, children):
+        try:
+            fds = list(Path(f"/proc/{child}/fd").iterdir())
+        except OSError:
+            continue
+        for fd in fds:
+            try:
+                if os.readlink(fd) == str(path):
+                    return child
+            except OSError:
+                continue
+    raise AssertionError(f"no child of {pid} has {path} open")
+
+
+def test_a_killed_recorder_ends_the_session_loudly_and_the_file_can_be_recovered(
+    tmp_path: Path,
+) -> None:
+    out = tmp_path / "session.mcap"
+    process = subprocess.Popen(
+        [str(HILRIG), "record", "--subject", "S004", "--duration", "120", "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert process.stderr is not None
+        assert "session started at the start pose" in process.stderr.readline()
+        os.kill(holder_of(process.pid, out), signal.SIGKILL)
+        stdout, stderr = process.communicate(timeout=120)  # far less than the 120 s asked for
+    finally:
+        process.kill()
+    assert process.returncode == 2
+    died = "the recorder process died: robot held, session ended"
+    assert f"fault: session: {died}" in stderr
+    assert "  ended early: the recorder process died; the robot was held" in stdout.splitlines()
+    incomplete = f"recorder of {out}: exited with code -9"
+    assert f"  the file is incomplete: {incomplete}" in stdout
+    *_, last = stderr.splitlines()
+    assert last.startswith(f"error: the recording is incomplete: {incomplete}")
+    assert last.endswith(f"; `hilrig recover {out} -o OUT` restores it")
+    # killed as the session started (its first line is printed within half a second): it
+    # ended within the watchdog's 100 ticks and the kill's own delay, far from the 120 000 asked
+    ticks = int(re.search(r"^  (\d+) ticks, ", stdout, re.M).group(1))  # type: ignore[union-attr]
+    assert ticks < 10_000
+    recover(out, tmp_path / "recovered.mcap")
+    logged = load(tmp_path / "recovered.mcap", topics=["/diagnostics/loop"])["/diagnostics/loop"]
+    assert 0 < len(logged) <= ticks
