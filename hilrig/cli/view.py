@@ -11,7 +11,11 @@ from hilrig.cli.app import app
 from hilrig.cli.errors import one_line_errors
 from hilrig.cli.options import DEFAULT_MAX_POINTS, DEFAULT_MAX_POSES, GRPC_PORT, WEB_PORT
 
+#: Seconds a viewer may take to receive the whole view before the command gives up.
+FLUSH_S = 120.0
+
 if TYPE_CHECKING:
+    from rerun import RecordingStream
     from rich.console import Console
 
     from hilrig.viz import Sink, ViewReport
@@ -88,18 +92,18 @@ def view_command(
     from hilrig.viz import layout, open_stream, recording_id, scene_from_session, show_scene
 
     sink = _sink(save, web, connect, port, web_port)
-    console = Console(highlight=False, soft_wrap=True)
+    console = Console(highlight=False, soft_wrap=True, markup=False)
     specs = parse_specs(controller or [], setting or [], []) if controller else []
     if setting and not controller:
         raise ViewError("--set changes a --controller: name one")
     scene = scene_from_session(file, specs, results or [])
-    warnings = Console(stderr=True, highlight=False, soft_wrap=True)
+    warnings = Console(stderr=True, highlight=False, soft_wrap=True, markup=False)
     for note in scene.notes:
         warnings.print(Text.assemble(("warning: ", "yellow"), note))
     rec, server = open_stream(sink, layout(scene, max_points), recording_id=recording_id(scene))
     try:
         report = show_scene(rec, scene, max_points=max_points, max_poses=max_poses)
-        rec.flush()
+        _flush(rec, sink)
         _print_report(console, report, scene.source)
         if save is not None:
             console.print(f"wrote {save}")
@@ -115,7 +119,7 @@ def view_command(
 def _sink(save: Path | None, web: bool, connect: str | None, port: int, web_port: int) -> Sink:
     """The one destination asked for; checked before anything is read."""
     from hilrig.errors import ViewError
-    from hilrig.viz.sinks import Sink, SinkKind, check_rrd_path, grpc_address
+    from hilrig.viz.sinks import Sink, SinkKind, check_reachable, check_rrd_path
 
     chosen = [name for name, on in (("--save", save), ("--web", web), ("--connect", connect)) if on]
     if len(chosen) > 1:
@@ -123,13 +127,30 @@ def _sink(save: Path | None, web: bool, connect: str | None, port: int, web_port
     if save is not None:
         return Sink(SinkKind.SAVE, path=check_rrd_path(save, "--save"))
     if connect is not None:
-        grpc_address(connect, "--connect")
+        check_reachable(connect, "--connect")  # at once: Rerun would retry for minutes
         return Sink(SinkKind.CONNECT, url=connect)
     if web:
         if port == web_port:
             raise ViewError(f"--port and --web-port are both {port}: they must differ")
         return Sink(SinkKind.WEB, port=port, web_port=web_port)
     return Sink(SinkKind.SPAWN, port=port)
+
+
+def _flush(rec: RecordingStream, sink: Sink) -> None:
+    """Wait until the view has left: a file without limit, a viewer for FLUSH_S at most (a
+    viewer that went away is one line)."""
+    from hilrig.errors import ViewError
+    from hilrig.viz.sinks import SinkKind
+
+    if sink.kind is SinkKind.SAVE:
+        rec.flush()
+        return
+    try:
+        rec.flush(timeout_sec=FLUSH_S)
+    except Exception as err:  # Rerun's own error type for a viewer that does not take data
+        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+        where = sink.url or f"port {sink.port}"
+        raise ViewError(f"the viewer at {where} did not take the view ({first})") from err
 
 
 def _print_report(console: Console, report: ViewReport, source: str) -> None:

@@ -7,6 +7,7 @@ import contextlib
 import os
 import socket
 import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -26,6 +27,11 @@ GRPC_PORT = 9876  # Rerun's defaults
 WEB_PORT = 9090
 RRD_SUFFIX = ".rrd"
 URL_SCHEMES = {"rerun": 443, "rerun+http": 80, "rerun+https": 443}  # and their default ports
+CONNECT_TIMEOUT_S = 3.0  # a viewer's address must accept a connection within this
+NO_DISPLAY = (
+    "no display for the Rerun viewer (DISPLAY and WAYLAND_DISPLAY are not set): save to a file "
+    "or use the web viewer or a viewer's URL"
+)
 
 
 class SinkKind(StrEnum):
@@ -73,6 +79,28 @@ def grpc_address(url: str, what: str = "URL") -> tuple[str, int]:
             f"{what} {url!r}: expected rerun+http://HOST:PORT/proxy (or rerun://, rerun+https://)"
         )
     return parts.hostname, port
+
+
+def check_reachable(url: str, what: str = "URL", timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """Raises ViewError (one line) unless something accepts a connection at the Rerun gRPC
+    ``url`` within ``timeout_s``: Rerun itself would keep retrying for minutes."""
+    address = grpc_address(url, what)
+    try:
+        socket.create_connection(address, timeout=timeout_s).close()
+    except TimeoutError:
+        raise ViewError(f"{what} {url}: no answer within {timeout_s:g} s") from None
+    except OSError as err:
+        reason = err.strerror or type(err).__name__
+        raise ViewError(f"{what} {url}: no viewer listening there ({reason})") from None
+
+
+def check_display(port: int = GRPC_PORT) -> None:
+    """Raises ViewError at once when the desktop viewer could not open a window: on Linux,
+    neither DISPLAY nor WAYLAND_DISPLAY is set (and no viewer already listens on ``port``)."""
+    if not sys.platform.startswith("linux") or _listening(port):
+        return
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise ViewError(NO_DISPLAY)
 
 
 def grpc_url(port: int, host: str = LOCALHOST) -> str:
@@ -139,6 +167,7 @@ def spawn_viewer(port: int, timeout_s: float = 20.0) -> None:
     ``VIEWER_SETTLE_S`` after it listens."""
     if _listening(port):
         return
+    check_display(port)
     command = [str(rerun_binary()), "--port", str(port), "--expect-data-soon"]
     with tempfile.TemporaryFile(mode="w+") as log:
         try:
@@ -191,6 +220,7 @@ def open_stream(
                 assert sink.path is not None
                 rec.save(sink.path, default_blueprint=blueprint)
             case SinkKind.CONNECT:
+                check_reachable(sink.url or "", "viewer")
                 rec.connect_grpc(sink.url, default_blueprint=blueprint)
             case SinkKind.SPAWN:
                 spawn_viewer(sink.port)

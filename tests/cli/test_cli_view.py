@@ -216,8 +216,17 @@ def test_without_a_display_the_desktop_viewer_fails_in_one_line(tmp_path: Path) 
         env=env,
     )
     assert result.returncode == 2
-    assert len(result.stderr.splitlines()) == 1
-    assert result.stderr.startswith("error: the Rerun viewer did not start (")
-    assert result.stderr.endswith(
-        "); without a display, save to a file or use the web viewer or a viewer's URL\n"
+    assert result.stderr == (
+        "error: no display for the Rerun viewer (DISPLAY and WAYLAND_DISPLAY are not set): save "
+        "to a file or use the web viewer or a viewer's URL\n"
+    )
+
+
+def test_connect_where_nothing_listens_fails_at_once_in_one_line() -> None:
+    url = f"rerun+http://127.0.0.1:{free_port()}/proxy"  # bound and released: nobody listens
+    result = hilrig("view", str(EXAMPLE), "--connect", url, timeout=60)  # Rerun would retry
+    assert result.returncode == 2
+    assert result.stdout == ""
+    assert (
+        result.stderr == f"error: --connect {url}: no viewer listening there (Connection refused)\n"
     )
