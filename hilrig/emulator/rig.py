@@ -224,7 +224,9 @@ class EmulatedRig:
         self.modbus.tick(slot_ns)
 
     def _wrench(self, t_s: float) -> tuple[float, ...]:
-        return self.scenario.wrench_in_sensor(t_s, self._pose)
+        """The sensor's wrench at this slot, on the scenario's clock (``t_s``, the sensor's own
+        time since the loop opened, runs ahead of it until the session's first tick)."""
+        return self.scenario.wrench_in_sensor(self._slot_t_s, self._pose)
 
     def _targets(self, targets: JointTargets) -> None:
         self.plant.set_targets(targets, time.monotonic_ns())

@@ -174,12 +174,6 @@ def test_a_killed_recorder_ends_the_session_at_once_and_loses_at_most_half_a_sec
     assert 0 <= lost_s <= 0.5
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the emulated F/T sensor times the wrench from the rig's open, not the scenario's "
-    "clock: EmulatedRig._wrench passes the sensor's own slot time (hilrig/emulator/rig.py), so "
-    "the end-effector collision comes as early as start-up took (about 0.6 s)",
-)
 def test_the_collision_starts_on_time_counted_from_the_first_tick(
     collision: SessionResult,
 ) -> None:
