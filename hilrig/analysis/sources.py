@@ -108,9 +108,9 @@ def load_session(paths: Path | Sequence[Path]) -> Source:
     """
     parts = [paths] if isinstance(paths, Path) else list(paths)
     info = inspect(parts[0])
-    if SESSION_METADATA not in info.metadata:
+    session = info.session_info()
+    if session is None:
         raise AnalysisError(f"{parts[0]}: no session metadata; is it a hilrig recording?")
-    session = SessionInfo.from_metadata(info.metadata[SESSION_METADATA])
     counts = {t.topic: t.count for t in info.topics}
     if not counts.get(STATE_TOPIC):
         raise AnalysisError(f"{parts[0]}: no {STATE_TOPIC} messages to analyse")

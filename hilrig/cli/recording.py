@@ -1,4 +1,9 @@
-"""``hilrig info | recover | export``: look into, repair and convert MCAP session recordings."""
+"""``hilrig info | recover | export``: look into, repair and convert MCAP session recordings.
+
+Exit status of each: 0 the file is whole; 1 it was read but is damaged or unfinished (what is
+damaged and what it cost are printed, and recover and export still write what was readable);
+2 it cannot be read at all, or an output cannot be written (one ``error:`` line).
+"""
 
 from __future__ import annotations
 
@@ -17,6 +22,8 @@ if TYPE_CHECKING:
     from hilrig.recording.info import FileInfo
 
 _FILE = Annotated[Path, typer.Argument(help="An MCAP recording.", show_default=False)]
+#: Exit status of a file that was read but is damaged or unfinished.
+DAMAGED_EXIT = 1
 
 
 class ExportFormat(enum.StrEnum):
@@ -31,15 +38,27 @@ def _problems(console: Console, problems: tuple[str, ...]) -> None:
         console.print(Text.assemble(("warning: ", "yellow"), line), soft_wrap=True)
 
 
+def _exit_if_damaged(problems: tuple[str, ...]) -> None:
+    if problems:
+        raise typer.Exit(DAMAGED_EXIT)
+
+
 @app.command("info")
 @one_line_errors
 def info_command(
     file: _FILE,
     check: Annotated[
-        bool, typer.Option("--check", help="Decompress every chunk and verify its CRC.")
+        bool,
+        typer.Option(
+            "--check", help="Read all of it: the data section's CRC, every chunk, every record."
+        ),
     ] = False,
 ) -> None:
-    """Session metadata, topics (type, count, rate, span, gaps) and whether the file is whole."""
+    """Session metadata, topics (type, count, rate, span, gaps), the loop's counters and
+    whether the file is whole.
+
+    Exit status: 0 whole; 1 read, but damaged or unfinished; 2 cannot be read at all.
+    """
     from rich.console import Console
 
     from hilrig.recording import inspect
@@ -50,9 +69,11 @@ def info_command(
         console = Console(highlight=False, width=200)
     _print_info(console, described)
     _problems(Console(stderr=True), described.problems)
+    _exit_if_damaged(described.problems)
 
 
 def _print_info(console: Console, info: FileInfo) -> None:
+    from rich.markup import escape
     from rich.table import Table
 
     from hilrig.recording.session import utc_iso
@@ -61,17 +82,28 @@ def _print_info(console: Console, info: FileInfo) -> None:
         state = "[green]complete[/]"
     elif info.truncated:
         state = "[bold red]TRUNCATED (unfinished; `hilrig recover` repairs it)[/]"
+    elif info.problems:
+        state = "[bold red]DAMAGED (`hilrig recover` keeps what is intact)[/]"
     else:
         state = "[yellow]no valid summary (`hilrig recover` rebuilds it)[/]"
-    console.print(f"[bold]{info.path}[/]  {info.size:,} bytes, {info.chunks} chunks, {state}")
-    console.print(f"profile {info.profile!r}, written by {info.library!r}")
+    console.print(
+        f"[bold]{escape(str(info.path))}[/]  {info.size:,} bytes, {info.chunks} chunks, {state}"
+    )
+    console.print(f"profile {info.profile!r}, written by {info.library!r}", markup=False)
     start, end = info.start_ns, info.end_ns
     if start is not None and end is not None:
         console.print(f"from {utc_iso(start)} to {utc_iso(end)} ({(end - start) / 1e9:.3f} s)")
+    if info.loop is not None:
+        loop = info.loop
+        console.print(
+            f"loop: {loop.ticks:,} ticks, {loop.overruns:,} overruns,"
+            f" {loop.recorder_drops:,} recorder drops; hold ticks are not recorded in the file"
+        )
     for name, values in info.metadata.items():
-        table = Table(title=f"metadata: {name}", title_justify="left", show_header=False)
+        table = Table(title=f"metadata: {escape(name)}", title_justify="left", show_header=False)
         for key, value in values.items():
-            table.add_row(key, value if len(value) < 200 else value[:197] + "...")
+            shown = value if len(value) < 200 else value[:197] + "..."
+            table.add_row(escape(key), escape(shown))
         console.print(table)
     topics = Table(title="topics", title_justify="left")
     for column in ("topic", "type", "messages", "rate Hz", "start s", "span s", "max gap ms"):
@@ -86,39 +118,60 @@ def _print_info(console: Console, info: FileInfo) -> None:
             else f"{(t.end_ns - t.start_ns) / 1e9:.3f}"
         )
         gap = "-" if t.max_interval_ns is None else f"{t.max_interval_ns / 1e6:.2f}"
-        topics.add_row(t.topic, t.type, f"{t.count:,}", rate, t0, span, gap, str(t.gaps))
+        row = (escape(t.topic), escape(t.type), f"{t.count:,}", rate, t0, span, gap, str(t.gaps))
+        topics.add_row(*row)
     console.print(topics)
     for a in info.attachments:
-        console.print(f"attachment {a.name} ({a.media_type}, {a.data_size:,} bytes)")
+        line = f"attachment {a.name} ({a.media_type}, {a.data_size:,} bytes)"
+        console.print(line, markup=False)
 
 
 @app.command("recover")
 @one_line_errors
 def recover_command(
     file: _FILE,
-    out: Annotated[Path, typer.Option("-o", "--out", help="Where to write the repaired file.")],
+    out: Annotated[
+        Path,
+        typer.Option("-o", "--out", help="Where to write the repaired file (must not exist)."),
+    ],
 ) -> None:
-    """Turn a truncated or unfinished recording into a valid one; report what was lost."""
+    """Write a valid copy of a truncated, unfinished or damaged recording with every intact
+    record; report what was damaged and lost.
+
+    Exit status: 0 the source was whole; 1 it was damaged or unfinished (the repaired copy is
+    written); 2 it cannot be read at all, or the output cannot be written (nothing is).
+    """
     from rich.console import Console
 
     from hilrig.recording import recover
 
     result = recover(file, out)
     console = Console(highlight=False)
-    console.print(f"wrote {result.output}")
-    console.print(result.summary(), soft_wrap=True)
+    console.print(f"wrote {result.output}", markup=False)
+    console.print(result.summary(), soft_wrap=True, markup=False)
+    _exit_if_damaged(result.problems)
 
 
 @app.command("export")
 @one_line_errors
 def export_command(
     file: _FILE,
-    out: Annotated[Path, typer.Option("--out", help="Directory for one table per topic.")],
+    out: Annotated[
+        Path, typer.Option("--out", help="Folder for one table per topic (made if missing).")
+    ],
     fmt: Annotated[
         ExportFormat, typer.Option("--format", help="Table format.")
     ] = ExportFormat.PARQUET,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace tables already in --out.")
+    ] = False,
 ) -> None:
-    """Write one Parquet or CSV table per topic (and metadata.json) into --out."""
+    """Write one Parquet or CSV table per topic (and metadata.json) into --out; existing tables
+    are refused unless --overwrite.
+
+    Exit status: 0 the file is whole; 1 it was read but is damaged or unfinished (what was
+    readable is written); 2 it cannot be read at all, or a table cannot be written (none is).
+    """
     from rich.console import Console
     from rich.progress import (
         BarColumn,
@@ -143,8 +196,10 @@ def export_command(
             file,
             out,
             fmt=fmt.value,
+            overwrite=overwrite,
             progress=lambda done, total: bar.update(task, completed=done, total=total),
         )
     for path in written:
-        console.print(f"wrote {path}")
+        console.print(f"wrote {path}", markup=False)
     _problems(Console(stderr=True), problems)
+    _exit_if_damaged(problems)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import contextlib
 import mmap
 import queue
-import struct
 import threading
 import zlib
 from collections.abc import Iterator, Sequence
@@ -21,11 +20,28 @@ import numpy as np
 import numpy.typing as npt
 import zstandard
 
+from hilrig.recording.file_index import ChunkInfo
 from hilrig.recording.mcap_records import RECORD_HEADER, Op
-from hilrig.recording.scan import ChunkInfo
+from hilrig.recording.parse import (
+    BadRecordError,
+    kind,
+    parse_message_head,
+    parse_message_index,
+    record_at,
+)
 
 _INDEX_ENTRY = np.dtype([("log", "<u8"), ("offset", "<u8")])
-_MESSAGE_HEAD = struct.Struct("<HIQ")  # channel, sequence, log time (after the record header)
+#: A Message record up to its data: opcode, length, channel, sequence, log and publish time.
+_HEAD = np.dtype(
+    [
+        ("op", "u1"),
+        ("length", "<u8"),
+        ("channel", "<u2"),
+        ("sequence", "<u4"),
+        ("log", "<u8"),
+        ("publish", "<u8"),
+    ]
+)
 BATCH_BYTES = 4 << 20
 
 #: Per channel id: log times (int64 ns) and record offsets in the decompressed chunk.
@@ -34,6 +50,10 @@ Entries = dict[int, tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]]
 
 class ChunkError(ValueError):
     """A chunk cannot be used: unsupported compression, corrupt data or a CRC mismatch."""
+
+
+class ChunkIndexError(ValueError):
+    """A chunk's message index is damaged; the chunk itself may be sound."""
 
 
 _ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
@@ -51,11 +71,13 @@ def _inflate_into(
     zstd: zstandard.ZstdDecompressor,
     *,
     strict: bool = True,
-) -> None:
-    """Decompress ``chunk`` into ``out`` (exactly its uncompressed size) and check its CRC.
+) -> bool:
+    """Decompress ``chunk`` into ``out`` (exactly its uncompressed size) and check it.
 
-    Unless ``strict``, a zstd frame with its own content checksum (XXH64, verified while
-    decompressing) stands in for the chunk's CRC32, which is then not computed again.
+    A zstd frame's own content checksum (XXH64, verified while decompressing) vouches for the
+    data; unless ``strict`` the chunk's CRC32 is then not computed again. Returns False when
+    the data is sound but the chunk's CRC field does not match it (or its header is damaged);
+    raises ChunkError when the data cannot be trusted.
     """
     raw = mm[chunk.data_offset : chunk.data_offset + chunk.compressed_size]
     size = chunk.uncompressed_size
@@ -79,17 +101,26 @@ def _inflate_into(
             raise ChunkError(f"unsupported compression {chunk.compression!r}")
     except (zstandard.ZstdError, RuntimeError) as err:
         raise ChunkError(f"compressed data is corrupt ({err})") from err
-    if not strict and chunk.compression == "zstd" and _self_checked(raw):
-        return
-    if chunk.uncompressed_crc and zlib.crc32(out[:size]) != chunk.uncompressed_crc:
-        raise ChunkError("CRC mismatch: the chunk is corrupt")
+    checked = chunk.compression == "zstd" and _self_checked(raw)
+    if chunk.uncompressed_crc is None:
+        if not checked:
+            raise ChunkError("its header is damaged and its data has no checksum of its own")
+        return False
+    if (checked and not strict) or not chunk.uncompressed_crc:
+        return True
+    if zlib.crc32(out[:size]) == chunk.uncompressed_crc:
+        return True
+    if checked:
+        return False
+    raise ChunkError("CRC mismatch: the chunk is corrupt")
 
 
-def inflate(mm: mmap.mmap, chunk: ChunkInfo) -> bytes:
-    """The chunk's records, decompressed and checked against its CRC. Raises ChunkError."""
+def inflate(mm: mmap.mmap, chunk: ChunkInfo) -> tuple[bytes, bool]:
+    """The chunk's records, decompressed and checked (see :func:`_inflate_into`), and whether
+    its CRC field matched. Raises ChunkError."""
     out = bytearray(chunk.uncompressed_size)
-    _inflate_into(mm, chunk, memoryview(out), zstandard.ZstdDecompressor())
-    return bytes(out)
+    crc_ok = _inflate_into(mm, chunk, memoryview(out), zstandard.ZstdDecompressor())
+    return bytes(out), crc_ok
 
 
 @dataclass
@@ -162,41 +193,112 @@ def batches(
 
 
 def indexed_entries(mm: mmap.mmap, chunk: ChunkInfo) -> Entries | None:
-    """Message positions from the chunk's MessageIndex records; None if absent or unusable."""
+    """Message positions from the chunk's MessageIndex records; None if it has none.
+
+    Raises ChunkIndexError when one is damaged: not a MessageIndex of its channel, or an entry
+    outside the chunk (its offset) or outside its time range.
+    """
     if not chunk.message_index_offsets:
         return None
     entries: Entries = {}
     for channel_id, offset in chunk.message_index_offsets.items():
-        if offset + RECORD_HEADER.size + 6 > len(mm):
-            return None
-        opcode, _ = RECORD_HEADER.unpack_from(mm, offset)
-        found, size = struct.unpack_from("<HI", mm, offset + RECORD_HEADER.size)
-        start = offset + RECORD_HEADER.size + 6
-        if opcode != Op.MESSAGE_INDEX or found != channel_id or start + size > len(mm):
-            return None
-        pairs = np.frombuffer(mm, dtype=_INDEX_ENTRY, count=size // 16, offset=start)
-        entries[channel_id] = (pairs["log"].astype(np.int64), pairs["offset"].astype(np.int64))
+        try:
+            opcode, c = record_at(mm, offset, len(mm))
+            if opcode != Op.MESSAGE_INDEX:
+                raise BadRecordError(f"a {kind(opcode)} is where it should be")
+            found, start, count = parse_message_index(c)
+        except BadRecordError as err:
+            raise ChunkIndexError(f"message index record at byte {offset}: {err}") from None
+        pairs = np.frombuffer(mm, dtype=_INDEX_ENTRY, count=count, offset=start)
+        times, offsets = pairs["log"].astype(np.int64), pairs["offset"].astype(np.int64)
+        if found != channel_id:
+            problem = f"it is channel {found}'s, not channel {channel_id}'s"
+        elif count and (offsets.min() < 0 or offsets.max() >= chunk.uncompressed_size):
+            problem = "an entry points outside the chunk"
+        elif count and (times.min() < chunk.start_ns or times.max() > chunk.end_ns):
+            problem = "an entry's log time is outside the chunk's time range"
+        else:
+            entries[channel_id] = (times, offsets)
+            continue
+        raise ChunkIndexError(f"message index record at byte {offset}: {problem}")
     return entries
+
+
+def entries_of(
+    data: bytes | memoryview, hint: Entries | None
+) -> tuple[Entries, list[tuple[int, int]], bool]:
+    """Message positions in a decompressed chunk, Schema and Channel records it holds, and
+    whether ``hint`` (from its message indexes) was wrong. The hint is used when its entries
+    tile the chunk exactly, each a Message of its channel with its log time; else the chunk's
+    records are walked. Raises ChunkError if they do not parse."""
+    if hint is not None and _tiles(data, hint):
+        return hint, [], False
+    found, definitions = scan_entries(data)
+    return found, definitions, hint is not None and not _same(found, hint)
+
+
+def _tiles(data: bytes | memoryview, entries: Entries) -> bool:
+    if not entries:
+        return len(data) == 0
+    offsets = np.concatenate([o for _, o in entries.values()])
+    times = np.concatenate([t for t, _ in entries.values()])
+    channels = np.concatenate(
+        [np.full(len(o), cid, dtype=np.int64) for cid, (_, o) in entries.items()]
+    )
+    order = np.argsort(offsets, kind="stable")
+    offsets = offsets[order]
+    size = len(data)
+    if len(offsets) == 0 or offsets[0] != 0 or offsets[-1] + _HEAD.itemsize > size:
+        return False
+    buffer = np.frombuffer(data, dtype=np.uint8)
+    heads = buffer[offsets[:, None] + np.arange(_HEAD.itemsize)].view(_HEAD)[:, 0]
+    ends = offsets + RECORD_HEADER.size + heads["length"].astype(np.int64)
+    return bool(
+        (heads["op"] == Op.MESSAGE).all()
+        and (heads["length"] < size).all()
+        and (ends[:-1] == offsets[1:]).all()
+        and ends[-1] == size
+        and (heads["channel"] == channels[order]).all()
+        and (heads["log"].astype(np.int64) == times[order]).all()
+    )
+
+
+def _same(a: Entries, b: Entries) -> bool:
+    if set(a) != set(b):
+        return False
+    for cid, (times, offsets) in a.items():
+        order = np.argsort(b[cid][1], kind="stable")
+        if not (
+            np.array_equal(offsets, b[cid][1][order]) and np.array_equal(times, b[cid][0][order])
+        ):
+            return False
+    return True
 
 
 def scan_entries(data: bytes | memoryview) -> tuple[Entries, list[tuple[int, int]]]:
     """Message positions found by walking a chunk's records one by one (no index needed).
 
     Also returns ``(opcode, offset)`` of the Schema and Channel records the chunk holds.
+    Raises ChunkError for a record that runs past the chunk or does not belong in one.
     """
     found: dict[int, tuple[list[int], list[int]]] = {}
     definitions: list[tuple[int, int]] = []
     pos, end = 0, len(data)
-    while pos + RECORD_HEADER.size <= end:
-        opcode, length = RECORD_HEADER.unpack_from(data, pos)
-        if opcode == Op.MESSAGE and pos + RECORD_HEADER.size + _MESSAGE_HEAD.size <= end:
-            channel_id, _, log = _MESSAGE_HEAD.unpack_from(data, pos + RECORD_HEADER.size)
-            times, offsets = found.setdefault(channel_id, ([], []))
-            times.append(log)
-            offsets.append(pos)
-        elif opcode in (Op.SCHEMA, Op.CHANNEL):
-            definitions.append((opcode, pos))
-        pos += RECORD_HEADER.size + length
+    while pos < end:
+        try:
+            opcode, c = record_at(data, pos, end)
+            if opcode == Op.MESSAGE:
+                channel_id, _, log, _ = parse_message_head(c)
+                times, offsets = found.setdefault(channel_id, ([], []))
+                times.append(log)
+                offsets.append(pos)
+            elif opcode in (Op.SCHEMA, Op.CHANNEL):
+                definitions.append((opcode, pos))
+            else:
+                raise BadRecordError(f"a {kind(opcode)} does not belong in a chunk")
+        except BadRecordError as err:
+            raise ChunkError(f"its record at offset {pos} is unreadable: {err}") from None
+        pos = c.end
     entries = {
         cid: (np.array(t, dtype=np.int64), np.array(o, dtype=np.int64))
         for cid, (t, o) in found.items()

@@ -1,7 +1,10 @@
-"""What a recording holds, for people: session, topics, counts, rates, gaps, completeness.
+"""What a recording holds, for people: session, topics, counts, rates, gaps, loop health, and
+whether it is whole.
 
-Counts and timing come from the message indexes, so a whole file is described without
-decompressing it; ``check=True`` also decompresses every chunk to verify its CRC.
+Counts and timing come from the message indexes (each checked against its chunk's place and
+time range), so a whole file is described without decompressing it; the loop's counters come
+from its last ``/diagnostics/loop`` message. ``check=True`` reads everything instead
+(:mod:`.survey`): the data section's CRC, every chunk's CRC, every record.
 """
 
 from __future__ import annotations
@@ -15,20 +18,24 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from hilrig.recording.chunks import ChunkError, indexed_entries, inflate, scan_entries
-from hilrig.recording.mcap_records import MESSAGE_PREFIX
-from hilrig.recording.scan import (
-    AttachmentRef,
-    FileIndex,
-    add_definitions,
-    describe_truncation,
-    index_mapped,
-    open_mcap,
-    read_metadata,
+from hilrig.errors import RecordingError
+from hilrig.recording.chunks import (
+    ChunkError,
+    ChunkIndexError,
+    entries_of,
+    indexed_entries,
+    inflate,
 )
+from hilrig.recording.file_index import FileIndex
+from hilrig.recording.mcap_records import MESSAGE_PREFIX
+from hilrig.recording.parse import IndexRef
+from hilrig.recording.scan import add_definitions, index_mapped, open_mcap
+from hilrig.recording.session import SessionInfo
+from hilrig.recording.survey import check_data_crc, checked_chunks, loose_messages, survey
 
 #: An interval longer than this many median intervals counts as a gap.
 GAP_FACTOR = 5.0
+LOOP_TOPIC = "/diagnostics/loop"
 
 
 @dataclass(frozen=True)
@@ -47,8 +54,19 @@ class TopicInfo:
 
 
 @dataclass(frozen=True)
+class LoopCounters:
+    """The loop's cumulative counters in its last ``/diagnostics/loop`` message: ticks, ticks
+    that overran, and rows the recorder's rings refused (recorder drops)."""
+
+    ticks: int
+    overruns: int
+    recorder_drops: int
+
+
+@dataclass(frozen=True)
 class FileInfo:
-    """A recording at a glance; ``problems`` are one line each (truncation, bad chunks)."""
+    """A recording at a glance. ``complete``: its summary is whole and nothing read was damaged
+    or missing; ``problems`` are one line each (truncation, damage, what it costs)."""
 
     path: Path
     size: int
@@ -59,8 +77,10 @@ class FileInfo:
     chunks: int
     topics: tuple[TopicInfo, ...]
     metadata: dict[str, dict[str, str]]
-    attachments: tuple[AttachmentRef, ...]
+    attachments: tuple[IndexRef, ...]
     problems: tuple[str, ...]
+    loop: LoopCounters | None = None
+    session_problem: str | None = None
 
     @property
     def start_ns(self) -> int | None:
@@ -72,55 +92,88 @@ class FileInfo:
         ends = [t.end_ns for t in self.topics if t.end_ns is not None]
         return max(ends) if ends else None
 
+    def session_info(self) -> SessionInfo | None:
+        """The session record; None if the file has none. RecordingError if it is damaged."""
+        if self.session_problem is not None:
+            raise RecordingError(self.session_problem)
+        record = self.metadata.get("session")
+        return None if record is None else SessionInfo.checked(record)
+
 
 def inspect(path: str | os.PathLike[str], *, check: bool = False) -> FileInfo:
-    """Describe ``path``. Raises RecordingError (one line) if it is not a readable MCAP file."""
+    """Describe ``path``; with ``check``, read and verify all of it. Raises RecordingError (one
+    line) only when it is not an MCAP file at all: damage is reported in ``problems``."""
     p, mm = open_mcap(path)
     try:
-        index = index_mapped(p, mm)
-        times, problems = _message_times(mm, index, check=check)
-        if index.truncation is not None:
-            problems.insert(0, describe_truncation(index))
-        elif not index.complete:
-            problems.insert(0, f"{p}: summary missing or damaged; indexed by scanning")
+        index = survey(p, mm) if check else index_mapped(p, mm)
+        times = _checked_times(mm, index) if check else _indexed_times(mm, index)
+        if check:
+            check_data_crc(mm, index)
+        loop = _loop_counters(p, mm, index, times)
+        problems = index.problems()
+        try:
+            index.session_info()
+            session_problem = None
+        except RecordingError as err:
+            session_problem = str(err)
         return FileInfo(
             path=p,
             size=index.size,
             profile=index.profile,
             library=index.library,
-            complete=index.complete,
+            complete=index.complete and not problems,
             truncated=index.truncation is not None,
             chunks=len(index.chunks),
             topics=tuple(_topic_info(index, cid, times.get(cid)) for cid in sorted(index.channels)),
-            metadata=_metadata(mm, index),
+            metadata=index.values,
             attachments=tuple(index.attachments),
             problems=tuple(problems),
+            loop=loop,
+            session_problem=session_problem,
         )
     finally:
         mm.close()
 
 
-def _message_times(
-    mm: mmap.mmap, index: FileIndex, *, check: bool
-) -> tuple[dict[int, npt.NDArray[np.int64]], list[str]]:
+Times = dict[int, npt.NDArray[np.int64]]
+
+
+def _indexed_times(mm: mmap.mmap, index: FileIndex) -> Times:
+    """Log times per channel from the message indexes; a chunk without a usable index is
+    decompressed and walked (a damaged index is reported, an unreadable chunk too)."""
     parts: dict[int, list[npt.NDArray[np.int64]]] = defaultdict(list)
-    problems: list[str] = []
     for chunk in index.chunks:
-        entries = None if check else indexed_entries(mm, chunk)
+        try:
+            entries = indexed_entries(mm, chunk)
+        except ChunkIndexError as err:
+            index.damaged("message index records of the chunk", chunk.offset, str(err))
+            entries = None
         if entries is None:
             try:
-                data = inflate(mm, chunk)
+                data, _ = inflate(mm, chunk)
+                entries, definitions, _ = entries_of(data, None)
             except ChunkError as err:
-                problems.append(f"{index.path}: chunk at byte {chunk.offset} is unreadable: {err}")
+                end = chunk.offset + chunk.length
+                index.damaged("chunk record", chunk.offset, f"unreadable: {err}", end)
                 continue
-            entries, definitions = scan_entries(data)
             add_definitions(index, data, definitions)
         for channel_id, (log, _) in entries.items():
             parts[channel_id].append(log)
     for offset in index.loose_messages:
         channel_id, _, log = MESSAGE_PREFIX.unpack_from(mm, offset)[2:5]
         parts[channel_id].append(np.array([log], dtype=np.int64))
-    return {cid: np.sort(np.concatenate(p)) for cid, p in parts.items()}, problems
+    return {cid: np.sort(np.concatenate(p)) for cid, p in parts.items()}
+
+
+def _checked_times(mm: mmap.mmap, index: FileIndex) -> Times:
+    parts: dict[int, list[npt.NDArray[np.int64]]] = defaultdict(list)
+    for checked in checked_chunks(mm, index):
+        for channel_id, (log, _) in checked.entries.items():
+            parts[channel_id].append(log)
+    for offset in loose_messages(mm, index):
+        channel_id, _, log = MESSAGE_PREFIX.unpack_from(mm, offset)[2:5]
+        parts[channel_id].append(np.array([log], dtype=np.int64))
+    return {cid: np.sort(np.concatenate(p)) for cid, p in parts.items()}
 
 
 def _topic_info(index: FileIndex, channel_id: int, log: npt.NDArray[np.int64] | None) -> TopicInfo:
@@ -139,9 +192,19 @@ def _topic_info(index: FileIndex, channel_id: int, log: npt.NDArray[np.int64] | 
     return TopicInfo(channel.topic, kind, len(log), start, end, rate, int(intervals.max()), gaps)
 
 
-def _metadata(mm: mmap.mmap, index: FileIndex) -> dict[str, dict[str, str]]:
-    out: dict[str, dict[str, str]] = {}
-    for ref in index.metadata:
-        name, values = read_metadata(mm, ref)
-        out.setdefault(name, {}).update(values)
-    return out
+def _loop_counters(
+    path: Path, mm: mmap.mmap, index: FileIndex, times: Times
+) -> LoopCounters | None:
+    """The counters of the last readable ``/diagnostics/loop`` message, None without one."""
+    from hilrig.recording.reader import read_mapped
+
+    ids = [cid for cid, c in index.channels.items() if c.topic == LOOP_TOPIC]
+    if not ids or ids[0] not in times or not len(times[ids[0]]):
+        return None
+    last = int(times[ids[0]][-1])
+    frame = read_mapped(path, mm, index, [LOOP_TOPIC], last).frames.get(LOOP_TOPIC)
+    needed = {"tick", "overruns", "queue_drops"}
+    if frame is None or not len(frame) or not needed <= set(frame.columns):
+        return None
+    row = frame.iloc[-1]
+    return LoopCounters(int(row["tick"]), int(row["overruns"]), int(row["queue_drops"]))

@@ -11,7 +11,8 @@ import enum
 import struct
 import zlib
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import TypeVar
 
 MAGIC = b"\x89MCAP0\r\n"
 RECORD_HEADER = struct.Struct("<BQ")
@@ -85,6 +86,29 @@ class Metadata:
 
     def encode(self) -> bytes:
         return record(Op.METADATA, _str(self.name) + _map(self.metadata))
+
+
+#: MCAP gives Channel and Metadata records no CRC; hilrig adds one as their last key: the
+#: CRC-32 (8 hex digits) of the record as it would be without that key.
+SEAL_KEY = "hilrig.crc32"
+
+
+Sealable = TypeVar("Sealable", Channel, Metadata)
+
+
+def sealed(record: Sealable) -> Sealable:
+    """``record`` with its :data:`SEAL_KEY`."""
+    crc = f"{zlib.crc32(record.encode()):08x}"
+    return replace(record, metadata={**record.metadata, SEAL_KEY: crc})
+
+
+def seal_problem(record: Channel | Metadata) -> str:
+    """Why ``record``'s seal does not hold ("" when it does, or when it has none)."""
+    values = dict(record.metadata)
+    crc = values.pop(SEAL_KEY, None)
+    if crc is None or crc == f"{zlib.crc32(replace(record, metadata=values).encode()):08x}":
+        return ""
+    return "its CRC (key hilrig.crc32) does not match"
 
 
 @dataclass(frozen=True)
@@ -176,7 +200,7 @@ def metadata_index(offset: int, length: int, name: str) -> bytes:
     return record(Op.METADATA_INDEX, struct.pack("<QQ", offset, length) + _str(name))
 
 
-def data_end(crc: int = 0) -> bytes:
+def data_end(crc: int) -> bytes:
     return record(Op.DATA_END, struct.pack("<I", crc))
 
 
@@ -232,13 +256,15 @@ def data_end_and_summary(
     chunk_indexes: list[ChunkIndex],
     attachment_indexes: list[bytes],
     metadata_indexes: list[bytes],
+    data_crc: int,
 ) -> bytes:
-    """Everything after the last data record: DataEnd, the summary section (schemas, channels,
-    statistics and indexes, one group per record type), summary offsets, footer and magic.
+    """Everything after the last data record: DataEnd (with ``data_crc``, the CRC-32 of every
+    byte before it), the summary section (schemas, channels, statistics and indexes, one group
+    per record type), summary offsets, footer and magic.
 
     ``offset`` is the file offset the returned bytes will be written at.
     """
-    end = data_end()
+    end = data_end(data_crc)
     summary_start = offset + len(end)
     groups: list[tuple[Op, bytes]] = [
         (Op.SCHEMA, b"".join(s.encode() for s in schemas)),

@@ -24,19 +24,20 @@ import pandas as pd
 
 from hilrig.errors import RecordingError
 from hilrig.recording.cdr import LayoutError, layout_of
-from hilrig.recording.chunks import Entries, batches, indexed_entries, scan_entries
+from hilrig.recording.chunks import (
+    ChunkError,
+    ChunkIndexError,
+    Entries,
+    batches,
+    entries_of,
+    indexed_entries,
+)
 from hilrig.recording.columns import INDEX_NAME, FixedChannel
+from hilrig.recording.file_index import ChunkInfo, FileIndex
 from hilrig.recording.generic import DecodeError, RawMessage, decode_frame
 from hilrig.recording.mcap_records import MESSAGE_PREFIX, RECORD_HEADER, Channel, Schema
 from hilrig.recording.msgdef import parse_schema, short_name
-from hilrig.recording.scan import (
-    ChunkInfo,
-    FileIndex,
-    add_definitions,
-    describe_truncation,
-    index_mapped,
-    open_mcap,
-)
+from hilrig.recording.scan import add_definitions, index_mapped, open_mcap
 from hilrig.recording.schema import MESSAGE_ENCODING, SCHEMA_ENCODING
 from hilrig.recording.session import utc_iso
 
@@ -102,11 +103,24 @@ def read(
     """
     p, mm = open_mcap(path)
     try:
-        index = index_mapped(p, mm)
-        return _Load(mm, index, topics, start_ns, end_ns, progress).run()
+        return read_mapped(p, mm, index_mapped(p, mm), topics, start_ns, end_ns, progress)
     finally:
         with contextlib.suppress(BufferError):  # a view still held by an error's traceback
             mm.close()
+
+
+def read_mapped(
+    path: Path,
+    mm: mmap.mmap,
+    index: FileIndex,
+    topics: Iterable[str] | None = None,
+    start_ns: int | None = None,
+    end_ns: int | None = None,
+    progress: Progress | None = None,
+) -> Loaded:
+    """:func:`read` of a file already opened and indexed; what is found damaged while reading
+    is added to ``index.damage``."""
+    return _Load(mm, index, topics, start_ns, end_ns, progress).run()
 
 
 class _Channel:
@@ -181,35 +195,61 @@ class _Load:
         self.problems: list[str] = []
         self.channels: dict[int, _Channel] = {}
         self.refused: set[int] = set()
+        self.hints: dict[int, Entries | None] = {}  # each chunk's message index, unfiltered
+        self.entries: dict[int, Entries | None] = {}  # selected messages; None: not known yet
+        self.unknown: dict[int, int] = {}  # messages of channels without a channel record
 
     def run(self) -> Loaded:
         chunks = self._chunks()
-        entries = {c.offset: self._entries(c) for c in chunks}
+        self.entries = {c.offset: self._entries(c) for c in chunks}
         counts: dict[int, int] = {}
-        for found in entries.values():
+        for found in self.entries.values():
             for cid, (_, offsets) in (found or {}).items():
                 counts[cid] = counts.get(cid, 0) + len(offsets)
         done = 0
         for batch in batches(self.mm, chunks):
             for chunk, err in batch.errors:
-                span = f"{utc_iso(chunk.start_ns)} to {utc_iso(chunk.end_ns)}"
-                self.problems.append(
-                    f"{self.index.path}: chunk at byte {chunk.offset} ({span}) skipped: {err}"
-                )
-            self._gather(batch.data, batch.chunks, entries, counts)
+                self._skipped(chunk, err)
+            good = [(c, base) for c, base in batch.chunks if self._verify(batch.data, c, base)]
+            self._gather(batch.data, good, counts)
             done += len(batch.chunks) + len(batch.errors)
             if self.progress is not None:
                 self.progress(done, len(chunks))
-        self._read_generic(chunks, entries)
+        self._read_generic(chunks, self.entries)
         self._check_topics()
-        if self.index.truncation is not None:
-            self.problems.insert(0, describe_truncation(self.index))
-        elif not self.index.complete:
-            self.problems.insert(
-                0, f"{self.index.path}: summary missing or damaged; read by scanning every record"
-            )
+        for cid, count in sorted(self.unknown.items()):
+            detail = f"{count} messages of channel {cid}, which has no (intact) channel record"
+            self.index.damaged("chunk records", 0, detail + ", were skipped")
         frames = {c.channel.topic: c.frame() for c in self.channels.values()}
-        return Loaded(dict(sorted(frames.items())), tuple(self.problems), self.index)
+        problems = (*self.index.problems(), *self.problems)
+        return Loaded(dict(sorted(frames.items())), problems, self.index)
+
+    def _skipped(self, chunk: ChunkInfo, err: Exception) -> None:
+        self.entries[chunk.offset] = {}
+        span = f"{utc_iso(chunk.start_ns)} to {utc_iso(chunk.end_ns)}"
+        end = chunk.offset + chunk.length
+        self.index.damaged("chunk record", chunk.offset, f"{err}; its messages {span} skipped", end)
+
+    def _verify(self, data: npt.NDArray[np.uint8], chunk: ChunkInfo, base: int) -> bool:
+        """Check the chunk's message index against its records (or walk them); False if they
+        cannot be read."""
+        view = data.data[base : base + chunk.uncompressed_size]
+        hint = self.hints.get(chunk.offset)
+        try:
+            found, definitions, wrong = entries_of(view, hint)
+        except ChunkError as err:
+            self._skipped(chunk, err)
+            return False
+        add_definitions(self.index, bytes(view), definitions)
+        if found is not hint or self.entries[chunk.offset] is None:
+            self.entries[chunk.offset] = self._filtered(found)
+        if wrong:
+            detail = "they do not match the chunk's messages; the chunk was read without them"
+            self.index.damaged("message index records of the chunk", chunk.offset, detail)
+        for cid, (times, _) in found.items():
+            if cid not in self.index.channels:
+                self.unknown[cid] = self.unknown.get(cid, 0) + len(times)
+        return True
 
     def _chunks(self) -> list[ChunkInfo]:
         """The chunks that may hold selected messages; a chunk whose channels are not all
@@ -234,7 +274,12 @@ class _Load:
     def _entries(self, chunk: ChunkInfo) -> Entries | None:
         """Selected channels' messages in ``chunk`` within the time range, from its index;
         None when the chunk must be scanned after decompression."""
-        found = indexed_entries(self.mm, chunk)
+        try:
+            found = indexed_entries(self.mm, chunk)
+        except ChunkIndexError as err:
+            self.index.damaged("message index records of the chunk", chunk.offset, str(err))
+            found = None
+        self.hints[chunk.offset] = found
         if found is None or not set(found) <= set(self.index.channels):
             return None
         inside = self.start <= chunk.start_ns and chunk.end_ns < self.end
@@ -255,25 +300,15 @@ class _Load:
             out[cid] = (times, offsets) if keep.all() else (times[keep], offsets[keep])
         return out
 
-    def _scanned(self, data: npt.NDArray[np.uint8], start: int, size: int) -> Entries:
-        view = data.data[start : start + size]
-        found, definitions = scan_entries(view)
-        add_definitions(self.index, bytes(view), definitions)
-        return self._filtered(found)
-
     def _gather(
         self,
         data: npt.NDArray[np.uint8],
         chunks: list[tuple[ChunkInfo, int]],
-        entries: dict[int, Entries | None],
         counts: dict[int, int],
     ) -> None:
         offsets: dict[int, list[npt.NDArray[np.int64]]] = {}
         for chunk, base in chunks:
-            found = entries[chunk.offset]
-            if found is None:
-                found = entries[chunk.offset] = self._scanned(data, base, chunk.uncompressed_size)
-            for cid, (_, positions) in found.items():
+            for cid, (_, positions) in (self.entries[chunk.offset] or {}).items():
                 if len(positions):
                     offsets.setdefault(cid, []).append(positions + base)
         for cid, parts in offsets.items():

@@ -1,41 +1,51 @@
-"""Make a truncated, unfinished or partly corrupt MCAP file whole again.
+"""Make a truncated, unfinished or damaged MCAP file whole again, and say exactly what was lost.
 
-The data section is scanned record by record (the summary, if any, is not trusted). Every
-complete record is kept: schemas, channels, metadata and attachments as they are, every chunk
-whose data passes its CRC verbatim (no recompression) with its message indexes rebuilt from
-its contents. A fresh summary - statistics, chunk, metadata and attachment indexes - and the
-footer follow, so every MCAP tool opens the result.
+The source is checked through (:mod:`.survey`): its data section scanned record by record (the
+summary only compared), damaged records skipped. Every intact record is kept: schemas, channels
+(the summary's copy where the data section's is damaged), metadata and attachments as they
+are, and every chunk whose data passes its checks with its compressed bytes as they are - its
+header written anew when its CRC or time range field was damaged, its message indexes rebuilt
+from its contents. A fresh summary (statistics, chunk, metadata and attachment indexes) and a
+footer follow, and the data section's CRC, so every MCAP tool opens the result. The output is
+written through :func:`hilrig.outputs.new_files`: all of it, or nothing.
 """
 
 from __future__ import annotations
 
 import mmap
 import os
+import zlib
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
 import numpy as np
+import zstandard
 
-from hilrig.errors import RecordingError
+from hilrig.outputs import new_files
 from hilrig.recording import mcap_records as rec
-from hilrig.recording.chunks import ChunkError, Entries, indexed_entries, inflate, scan_entries
-from hilrig.recording.scan import (
-    ChunkInfo,
-    FileIndex,
-    Truncation,
-    add_definitions,
-    describe_truncation,
-    index_mapped,
-    open_mcap,
-)
+from hilrig.recording.chunks import Entries
+from hilrig.recording.file_index import FileIndex, Truncation
+from hilrig.recording.scan import open_mcap
 from hilrig.recording.session import utc_iso
+from hilrig.recording.survey import (
+    CheckedChunk,
+    check_data_crc,
+    checked_chunks,
+    loose_messages,
+    survey,
+)
+
+_COMPRESSOR = zstandard.ZstdCompressor(level=3, write_checksum=True)
 
 
 @dataclass(frozen=True)
 class Recovery:
-    """What :func:`recover` kept and lost; times are MCAP log times (int64 ns)."""
+    """What :func:`recover` kept and lost; times are MCAP log times (int64 ns).
+    ``was_complete``: the source was whole and nothing in it was damaged; ``problems``: one
+    line per damaged or missing part (which record, its bytes, what it cost); ``lost``:
+    messages lost per topic, where the source's summary or message indexes tell."""
 
     source: Path
     output: Path
@@ -46,9 +56,10 @@ class Recovery:
     was_complete: bool
     truncation: Truncation | None
     problems: tuple[str, ...]
+    lost: dict[str, int]
 
     def summary(self) -> str:
-        """A few lines for people: messages kept, the time span lost, chunks dropped."""
+        """A few lines for people: messages kept, what was damaged and what it cost."""
         span = (
             f"from {utc_iso(self.start_ns)} to {utc_iso(self.end_ns)}"
             if self.start_ns is not None and self.end_ns is not None
@@ -56,56 +67,43 @@ class Recovery:
         )
         lines = [f"kept {self.messages} messages in {self.chunks} chunks, {span}"]
         if self.was_complete:
-            lines.append("the source was already complete; it was rewritten unchanged in content")
+            lines.append("the source was whole and undamaged; nothing was lost")
         lines.extend(self.problems)
+        if self.lost:
+            counts = ", ".join(f"{topic} {count}" for topic, count in sorted(self.lost.items()))
+            lines.append(f"messages lost per topic: {counts}")
         return "\n".join(lines)
 
 
 def recover(source: str | os.PathLike[str], output: str | os.PathLike[str]) -> Recovery:
-    """Write a valid copy of ``source`` to ``output`` with every complete, intact record.
+    """Write a valid copy of ``source`` to ``output`` with every intact record.
 
-    Raises RecordingError if ``source`` is not MCAP, or ``output`` exists or is the source.
+    Raises RecordingError if ``source`` is not MCAP, OutputError if ``output`` exists or
+    cannot be written (nothing is left behind).
     """
-    src, dst = Path(source), Path(output)
-    if dst.exists():
-        raise RecordingError(f"{dst}: already exists; refusing to overwrite it")
-    path, mm = open_mcap(src)
+    path, mm = open_mcap(source)
     try:
-        complete = index_mapped(path, mm).complete
-        index = index_mapped(path, mm, use_summary=False)
-        try:
-            with dst.open("xb") as out:
-                return _Rewriter(mm, index, out, dst, was_complete=complete).run()
-        except BaseException:
-            dst.unlink(missing_ok=True)
-            raise
+        with new_files(Path(output)) as (temporary,), temporary.open("xb") as out:
+            return _Rewriter(mm, survey(path, mm), out, Path(output)).run()
     finally:
         mm.close()
 
 
 class _Rewriter:
-    def __init__(
-        self,
-        mm: mmap.mmap,
-        index: FileIndex,
-        out: BinaryIO,
-        output: Path,
-        *,
-        was_complete: bool,
-    ) -> None:
-        self.mm, self.index, self.output, self.was_complete = mm, index, output, was_complete
-        self.out = out
+    def __init__(self, mm: mmap.mmap, index: FileIndex, out: BinaryIO, output: Path) -> None:
+        self.mm, self.index, self.out, self.output = mm, index, out, output
         self.pos = 0
+        self.crc = 0
         self.counts: Counter[int] = Counter()
         self.start, self.end = 2**64, -1
         self.chunk_indexes: list[rec.ChunkIndex] = []
         self.metadata_indexes: list[bytes] = []
         self.attachment_indexes: list[bytes] = []
-        self.problems: list[str] = []
 
     def write(self, data: bytes) -> None:
         self.out.write(data)
         self.pos += len(data)
+        self.crc = zlib.crc32(data, self.crc)
 
     def run(self) -> Recovery:
         index = self.index
@@ -115,17 +113,28 @@ class _Rewriter:
         for channel in index.channels.values():
             self.write(channel.encode())
         self._copy_metadata_and_attachments()
-        for chunk in index.chunks:
-            try:
-                data = inflate(self.mm, chunk)
-            except ChunkError as err:
-                span = f"{utc_iso(chunk.start_ns)} to {utc_iso(chunk.end_ns)}"
-                self.problems.append(f"dropped the chunk at byte {chunk.offset} ({span}): {err}")
-                continue
-            self._copy_chunk(chunk, data)
-        self._copy_loose_messages()
-        if index.truncation is not None:
-            self.problems.append(describe_truncation(index))
+        for checked in checked_chunks(self.mm, index):
+            self._copy_chunk(checked)
+        for offset in loose_messages(self.mm, index):
+            self._copy_loose_message(offset)
+        check_data_crc(self.mm, index)
+        self._finish()
+        problems = index.problems()
+        return Recovery(
+            source=index.path,
+            output=self.output,
+            messages=sum(self.counts.values()),
+            chunks=len(self.chunk_indexes),
+            start_ns=self.start if self.counts else None,
+            end_ns=self.end if self.counts else None,
+            was_complete=index.complete and not problems,
+            truncation=index.truncation,
+            problems=tuple(problems),
+            lost=self._lost(),
+        )
+
+    def _finish(self) -> None:
+        index = self.index
         statistics = rec.Statistics(
             message_count=sum(self.counts.values()),
             schema_count=len(index.schemas),
@@ -137,7 +146,7 @@ class _Rewriter:
             message_end_time=self.end if self.counts else 0,
             channel_message_counts={cid: self.counts[cid] for cid in index.channels},
         )
-        self.write(
+        self.out.write(
             rec.data_end_and_summary(
                 self.pos,
                 schemas=list(index.schemas.values()),
@@ -146,20 +155,22 @@ class _Rewriter:
                 chunk_indexes=self.chunk_indexes,
                 attachment_indexes=self.attachment_indexes,
                 metadata_indexes=self.metadata_indexes,
+                data_crc=self.crc,
             )
         )
-        has_messages = bool(self.counts)
-        return Recovery(
-            source=index.path,
-            output=self.output,
-            messages=sum(self.counts.values()),
-            chunks=len(self.chunk_indexes),
-            start_ns=self.start if has_messages else None,
-            end_ns=self.end if has_messages else None,
-            was_complete=self.was_complete,
-            truncation=index.truncation,
-            problems=tuple(self.problems),
-        )
+
+    def _lost(self) -> dict[str, int]:
+        """Messages lost per topic, from the source summary's statistics when it is whole."""
+        stats = self.index.statistics
+        if stats is None:
+            return {}
+        lost = {}
+        for cid, count in stats.channel_message_counts.items():
+            channel = self.index.channels.get(cid)
+            missing = count - self.counts[cid]
+            if missing > 0:
+                lost[channel.topic if channel else f"channel {cid}"] = missing
+        return lost
 
     def _copy_metadata_and_attachments(self) -> None:
         for ref in self.index.metadata:
@@ -181,13 +192,28 @@ class _Rewriter:
                 )
             )
 
-    def _copy_chunk(self, chunk: ChunkInfo, data: bytes) -> None:
-        entries: Entries | None = indexed_entries(self.mm, chunk)
-        if entries is None:
-            entries, definitions = scan_entries(data)
-            add_definitions(self.index, data, definitions)
+    def _copy_chunk(self, checked: CheckedChunk) -> None:
+        chunk, entries, data = checked.chunk, checked.entries, checked.data
+        start, end = checked.start_ns or 0, checked.end_ns or 0
         offset = self.pos
-        self.write(self.mm[chunk.offset : chunk.offset + chunk.length])
+        compression = chunk.compression
+        raw = self.mm[chunk.data_offset : chunk.data_offset + chunk.compressed_size]
+        if checked.dropped:  # its data holds messages of unknown channels: packed without them
+            data, entries = _kept_records(data, entries)
+            compression, raw = "zstd", _COMPRESSOR.compress(data)
+        if checked.header_damaged or checked.dropped:
+            head = rec.chunk_head(
+                start_ns=start,
+                end_ns=end,
+                uncompressed_size=len(data),
+                uncompressed_crc=zlib.crc32(data),
+                compression=compression,
+                compressed_size=len(raw),
+            )
+            self.write(head + raw)
+        else:
+            self.write(self.mm[chunk.offset : chunk.offset + chunk.length])
+        length = self.pos - offset
         index_start = self.pos
         index_offsets: dict[int, int] = {}
         for channel_id, (times, positions) in entries.items():
@@ -195,30 +221,48 @@ class _Rewriter:
             pairs = np.column_stack([times, positions]).astype("<u8").tobytes()
             self.write(rec.message_index(channel_id, pairs))
             self.counts[channel_id] += len(times)
-            if len(times):
-                self.start, self.end = (
-                    min(self.start, int(times.min())),
-                    max(self.end, int(times.max())),
-                )
+        if checked.start_ns is not None and checked.end_ns is not None:
+            self.start, self.end = min(self.start, start), max(self.end, end)
         self.chunk_indexes.append(
             rec.ChunkIndex(
-                chunk.start_ns,
-                chunk.end_ns,
+                start,
+                end,
                 offset,
-                chunk.length,
+                length,
                 index_offsets,
                 self.pos - index_start,
-                chunk.compression,
-                chunk.compressed_size,
-                chunk.uncompressed_size,
+                compression,
+                len(raw),
+                len(data),
             )
         )
 
-    def _copy_loose_messages(self) -> None:
-        for offset in self.index.loose_messages:
-            _, length = rec.RECORD_HEADER.unpack_from(self.mm, offset)
-            record = self.mm[offset : offset + rec.RECORD_HEADER.size + length]
-            channel_id, _, log, _ = rec.MESSAGE_PREFIX.unpack_from(record)[2:6]
-            self.write(record)
-            self.counts[channel_id] += 1
-            self.start, self.end = min(self.start, log), max(self.end, log)
+    def _copy_loose_message(self, offset: int) -> None:
+        _, length = rec.RECORD_HEADER.unpack_from(self.mm, offset)
+        record = self.mm[offset : offset + rec.RECORD_HEADER.size + length]
+        channel_id, _, log, _ = rec.MESSAGE_PREFIX.unpack_from(record)[2:6]
+        self.write(record)
+        self.counts[channel_id] += 1
+        self.start, self.end = min(self.start, log), max(self.end, log)
+
+
+def _kept_records(data: bytes, entries: Entries) -> tuple[bytes, Entries]:
+    """The records of ``entries`` (a chunk's data, some messages left out), back to back in
+    their order, and where each now is."""
+    records = sorted(
+        (offset, channel_id, log)
+        for channel_id, (times, offsets) in entries.items()
+        for log, offset in zip(times.tolist(), offsets.tolist(), strict=True)
+    )
+    out = bytearray()
+    kept: dict[int, tuple[list[int], list[int]]] = {}
+    for offset, channel_id, log in records:
+        _, length = rec.RECORD_HEADER.unpack_from(data, offset)
+        times, offsets = kept.setdefault(channel_id, ([], []))
+        times.append(log)
+        offsets.append(len(out))
+        out += data[offset : offset + rec.RECORD_HEADER.size + length]
+    return bytes(out), {
+        cid: (np.array(t, dtype=np.int64), np.array(o, dtype=np.int64))
+        for cid, (t, o) in kept.items()
+    }

@@ -46,9 +46,42 @@ def validate_subject_id(subject_id: str) -> str:
 
 def utc_iso(t_ns: int) -> str:
     """``t_ns`` (ns since the Unix epoch) as ISO 8601 UTC with nanoseconds, e.g.
-    ``2026-03-01T09:30:00.000000123Z``."""
+    ``2026-03-01T09:30:00.000000123Z``; a time no calendar date can show as ``<t_ns> ns``."""
     seconds, ns = divmod(t_ns, 1_000_000_000)
-    return datetime.fromtimestamp(seconds, UTC).strftime("%Y-%m-%dT%H:%M:%S") + f".{ns:09d}Z"
+    try:
+        day = datetime.fromtimestamp(seconds, UTC)
+    except (OverflowError, OSError, ValueError):
+        return f"{t_ns} ns"
+    return day.strftime("%Y-%m-%dT%H:%M:%S") + f".{ns:09d}Z"
+
+
+#: Messages may come before the session's start (rows waiting in the rings) by this much...
+MAX_BEFORE_START_NS = 3_600 * 1_000_000_000
+#: ... and after it by this much (the last part of a split session included).
+MAX_AFTER_START_NS = 7 * 86_400 * 1_000_000_000
+#: No log time of any file is later than this (2200-01-01T00:00:00Z).
+LATEST_NS = 7_258_118_400 * 1_000_000_000
+
+
+@dataclass(frozen=True)
+class TimeWindow:
+    """The log times (int64 ns) a file's messages can have; ``why`` names what set them."""
+
+    earliest: int = 0
+    latest: int = LATEST_NS
+    why: str = "no log time is negative or after 2200"
+
+    @classmethod
+    def of(cls, session: SessionInfo) -> TimeWindow:
+        start = session.start_utc_ns
+        why = f"the session started at {utc_iso(start)}: within 1 h before and 7 days after it"
+        return cls(start - MAX_BEFORE_START_NS, min(start + MAX_AFTER_START_NS, LATEST_NS), why)
+
+    def problem(self, start: int, end: int) -> str | None:
+        """Why log times ``start``..``end`` are impossible here, or None if they are not."""
+        if self.earliest <= start <= end <= self.latest:
+            return None
+        return f"impossible log times {utc_iso(start)} to {utc_iso(end)} ({self.why})"
 
 
 @dataclass(frozen=True)
@@ -138,6 +171,30 @@ class SessionInfo:
             )
         except (KeyError, ValueError) as err:
             raise RecordingError(f"session metadata is incomplete or malformed ({err})") from err
+
+    @classmethod
+    def checked(cls, record: Mapping[str, str]) -> SessionInfo:
+        """:meth:`from_metadata`, and the record's redundant fields must agree (format, start
+        time in both forms, clock offset, part number), else RecordingError saying which."""
+        session = cls.from_metadata(record)
+        start = session.start_utc_ns
+        problems = [
+            f"format {record.get('format')!r} is not {FORMAT_VERSION!r}"
+            if record.get("format") != FORMAT_VERSION
+            else "",
+            f"start_utc_ns {start} is impossible" if not 0 <= start <= LATEST_NS else "",
+            "start_utc does not match start_utc_ns"
+            if record.get("start_utc") != utc_iso(start)
+            else "",
+            "clock_offset_ns is not start_utc_ns - start_monotonic_ns"
+            if record.get("clock_offset_ns") != str(session.clock_offset_ns)
+            else "",
+            "part is not a number" if not record.get("part", "").isdigit() else "",
+        ]
+        found = [p for p in problems if p]
+        if found:
+            raise RecordingError(f"session metadata is inconsistent: {'; '.join(found)}")
+        return session
 
 
 def calibration_metadata(calibration: Mapping[str, object]) -> dict[str, str]:

@@ -113,9 +113,10 @@ class SessionWriter:
         self._offset_ns = session.clock_offset_ns
         self._metadata: list[rec.Metadata] = []  # after the session record, in every part
         if calibration:
-            self._metadata.append(
-                rec.Metadata(CALIBRATION_METADATA, calibration_metadata(calibration))
+            calibration_record = rec.Metadata(
+                CALIBRATION_METADATA, calibration_metadata(calibration)
             )
+            self._metadata.append(rec.sealed(calibration_record))
         # An empty serialized_metadata makes rosbag2 read the numeric QoS policies.
         self._metadata.append(rec.Metadata("rosbag2", {"serialized_metadata": ""}))
         self._attachments = list(attachments)
@@ -135,8 +136,9 @@ class SessionWriter:
         self._file: BinaryIO | None = None
         self.paths: list[Path] = []
         self._part = 0
-        # Per part (reset by _open_part): bytes written, open chunk, indexes and counts.
+        # Per part (reset by _open_part): bytes written and their CRC, open chunk, indexes.
         self._pos = 0
+        self._crc = 0
         self._buf = bytearray()
         self._chunk_start = self._chunk_end = 0
         self._part_start, self._part_end = 2**64 - 1, 0
@@ -163,7 +165,9 @@ class SessionWriter:
             self._schemas[spec.type] = schema
             self._write(schema.encode())
         channel_id = len(self._channels) + 1
-        record = rec.Channel(channel_id, schema.id, spec.topic, MESSAGE_ENCODING, spec.metadata)
+        record = rec.sealed(
+            rec.Channel(channel_id, schema.id, spec.topic, MESSAGE_ENCODING, spec.metadata)
+        )
         self._channels[spec.topic] = _Channel(
             record, ChannelEncoder(channel_id, spec), spec.device_clock
         )
@@ -306,6 +310,7 @@ class SessionWriter:
             raise RecordingError(f"{path}: cannot create ({err.strerror})") from err
         self.paths.append(path)
         self._pos = 0
+        self._crc = 0
         self._buf = bytearray()
         for channel in self._channels.values():
             channel.count = 0
@@ -318,7 +323,9 @@ class SessionWriter:
             self._write(schema.encode())
         for channel in self._channels.values():
             self._write(channel.record.encode())
-        session = rec.Metadata(SESSION_METADATA, self.session.to_metadata(part=self._part))
+        session = rec.sealed(
+            rec.Metadata(SESSION_METADATA, self.session.to_metadata(part=self._part))
+        )
         for metadata in [session, *self._metadata]:
             offset = self._pos
             self._write(metadata.encode())
@@ -365,6 +372,7 @@ class SessionWriter:
                 chunk_indexes=self._chunk_indexes,
                 attachment_indexes=self._attachment_indexes,
                 metadata_indexes=self._metadata_indexes,
+                data_crc=self._crc,
             )
         )
         self._file.close()
@@ -374,3 +382,4 @@ class SessionWriter:
         assert self._file is not None
         self._file.write(data)
         self._pos += len(data)
+        self._crc = zlib.crc32(data, self._crc)  # the data section's, in its DataEnd record

@@ -10,8 +10,6 @@ the median interval. Tables (CSV, Parquet) are read by :mod:`.tables`.
 
 from __future__ import annotations
 
-import contextlib
-import json
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -23,8 +21,7 @@ from numpy.typing import NDArray
 
 from hilrig.errors import RecordingError, ReplayError
 from hilrig.recording import SessionInfo, read
-from hilrig.recording.scan import index_mapped, open_mcap, read_metadata
-from hilrig.recording.session import SESSION_METADATA
+from hilrig.recording.scan import index_file
 from hilrig.replay.specs import GROUP_AXES
 from hilrig.replay.tables import trace_from_table
 from hilrig.replay.trace import ForceTrace
@@ -72,24 +69,11 @@ class SessionIndex:
 def session_index(path: Path) -> SessionIndex:
     """Topics and session metadata of ``path``, from its summary (nothing is decompressed)."""
     try:
-        p, mm = open_mcap(path)
-        try:
-            index = index_mapped(p, mm)
-            records = dict(read_metadata(mm, ref) for ref in index.metadata)
-        finally:
-            with contextlib.suppress(BufferError):
-                mm.close()
+        index = index_file(path)
+        session = index.session_info()
     except RecordingError as err:
         raise ReplayError(str(err)) from err
-    session = None
-    params: Mapping[str, object] = {}
-    record = records.get(SESSION_METADATA)
-    if record is not None:
-        try:
-            session = SessionInfo.from_metadata(record)
-            params = json.loads(record.get("controller_params", "{}"))
-        except (RecordingError, ValueError) as err:
-            raise ReplayError(f"{path}: session metadata: {err}") from err
+    params = session.controller_params if session is not None else {}
     topics = frozenset(c.topic for c in index.channels.values())
     return SessionIndex(topics, session, params)
 

@@ -18,6 +18,7 @@ from recording_helpers import Written
 from hilrig.errors import RecordingError
 from hilrig.recording import inspect, load, read, recover
 from hilrig.recording.msgdef import full_definition
+from hilrig.recording.schema import TOPICS
 
 CLI = [sys.executable, "-c", "from hilrig.cli import main; main()"]
 
@@ -52,14 +53,28 @@ def test_corrupt_chunk_data_is_skipped_and_reported(small_session: Written, tmp_
         official_messages(path)  # the official reader agrees the chunk is bad
     loaded = read(path)
     (problem,) = loaded.problems
-    assert problem.startswith(f"{path}: chunk at byte {offset} (")
-    assert "skipped" in problem
+    assert problem.startswith(f"{path}: chunk record at bytes {offset}-")
+    assert "compressed data is corrupt" in problem
+    assert problem.endswith(
+        "its messages 2026-01-01T00:00:00.500000000Z to 2026-01-01T00:00:00.749000017Z skipped"
+    )
     kept = sum(len(frame) for frame in loaded.frames.values())
     assert 0 < kept < len(small_session.samples)
     with pytest.warns(UserWarning, match="skipped"):
         load(path)
     recovery = recover(path, tmp_path / "fixed.mcap")
-    assert any(line.startswith(f"dropped the chunk at byte {offset}") for line in recovery.problems)
+    (line,) = recovery.problems
+    assert line.startswith(f"{path}: chunk record at bytes {offset}-")
+    assert line.endswith(
+        "its 2002 messages from 2026-01-01T00:00:00.500000000Z to"
+        " 2026-01-01T00:00:00.749000017Z are lost (/ft/wrist 250, /ft/base 250, /joint_states"
+        " 250, /controller/input 250, /controller/state 250, /trajectory/desired 250,"
+        " /trajectory/commanded 250, /events 2, /diagnostics/loop 250)"
+    )
+    assert kept + 2002 == len(small_session.samples)
+    assert recovery.lost == {
+        t: 250 for t in TOPICS if t not in ("/events", "/robot_description")
+    } | {"/events": 2}
     assert official_messages(tmp_path / "fixed.mcap") == recovery.messages == kept
 
 
@@ -71,12 +86,17 @@ def test_corrupt_chunk_crc_field_is_found_by_check_and_recover(
     path = corrupted(small_session, tmp_path, crc_at, "bad-crc.mcap")
     with pytest.raises(CRCValidationError):
         official_messages(path)
+    assert inspect(path).problems == ()  # the quick look reads no chunk
     described = inspect(path, check=True)
-    assert any(
-        f"chunk at byte {offset} is unreadable: CRC mismatch" in p for p in described.problems
+    end = offset + 9 + int.from_bytes(path.read_bytes()[offset + 1 : offset + 9], "little")
+    assert described.problems == (
+        f"{path}: chunk record at bytes {offset}-{end - 1}: its CRC field is damaged; zstd's"
+        " own checksum vouches for its data",
     )
-    recovery = recover(path, tmp_path / "fixed.mcap")
+    recovery = recover(path, tmp_path / "fixed.mcap")  # keeps the chunk, with its CRC mended
     assert official_messages(tmp_path / "fixed.mcap") == recovery.messages
+    assert recovery.messages == len(small_session.samples)
+    assert inspect(tmp_path / "fixed.mcap", check=True).problems == ()
 
 
 def json_only(path: Path) -> Path:
@@ -152,7 +172,9 @@ def test_struct_of_the_crc_offset_matches_the_spec() -> None:
     assert struct.calcsize("<BQQQQ") == 9 + 8 + 8 + 8
 
 
-def test_a_damaged_metadata_record_is_one_line(small_session: Written, tmp_path: Path) -> None:
+def test_a_damaged_metadata_record_is_reported_and_named(
+    small_session: Written, tmp_path: Path
+) -> None:
     with open(small_session.path, "rb") as f:
         summary = make_reader(f).get_summary()
     assert summary is not None
@@ -162,6 +184,10 @@ def test_a_damaged_metadata_record_is_one_line(small_session: Written, tmp_path:
     data[map_at : map_at + 4] = struct.pack("<I", 0xFFFFFF00)  # the map runs past the record
     path = tmp_path / "bad-metadata.mcap"
     path.write_bytes(bytes(data))
+    line = f"{path}: metadata record 'session' at byte {ref.offset}: its fields run past its end"
+    described = inspect(path)
+    assert described.problems == (line,) and not described.complete
+    assert "session" not in described.metadata and "calibration" in described.metadata
     with pytest.raises(RecordingError) as caught:
-        inspect(path)
-    assert str(caught.value) == f"metadata record {ref.name!r} at byte {ref.offset} is damaged"
+        described.session_info()
+    assert str(caught.value) == line

@@ -36,7 +36,7 @@ def test_info_says_a_cut_file_is_truncated(small_session: Written, tmp_path: Pat
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(small_session.path.read_bytes()[:300_000])
     result = runner.invoke(app, ["info", str(cut)])
-    assert result.exit_code == 0
+    assert result.exit_code == 1  # read, but unfinished
     assert "TRUNCATED" in result.output
     assert "unfinished recording" in result.output
 
@@ -45,7 +45,7 @@ def test_recover_prints_what_was_kept_and_lost(small_session: Written, tmp_path:
     cut, fixed = tmp_path / "cut.mcap", tmp_path / "fixed.mcap"
     cut.write_bytes(small_session.path.read_bytes()[:300_000])
     result = runner.invoke(app, ["recover", str(cut), "-o", str(fixed)])
-    assert result.exit_code == 0, result.output
+    assert result.exit_code == 1, result.output  # written; the source was unfinished
     assert f"wrote {fixed}" in result.output
     assert "kept " in result.output and "were lost" in result.output
     with open(fixed, "rb") as f:

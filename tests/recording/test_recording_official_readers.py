@@ -4,6 +4,7 @@ every field equals what was written, and the file carries what ROS 2 tools expec
 from __future__ import annotations
 
 import math
+import zlib
 from typing import Any
 
 import pytest
@@ -21,6 +22,7 @@ from hilrig.recording import (
     WrenchSample,
     default_channels,
 )
+from hilrig.recording.mcap_records import Metadata
 from hilrig.recording.schema import AXIS_NAMES, JOINT_NAMES
 
 SPECS = {spec.topic: spec for spec in default_channels()}
@@ -122,10 +124,9 @@ def test_session_calibration_and_attachments_are_stored(small_session: Written) 
         attachments = {a.name: a for a in reader.iter_attachments()}
     assert SessionInfo.from_metadata(metadata["session"]) == small_session.info
     assert metadata["session"]["start_utc"] == "2026-01-01T00:00:00.000000000Z"
-    assert metadata["calibration"] == {
-        "ft_wrist.bias_N": "[0.1, -0.2, 0.05]",
-        "tool_mass_kg": "0.8",
-    }
+    calibration = {"ft_wrist.bias_N": "[0.1, -0.2, 0.05]", "tool_mass_kg": "0.8"}
+    record = Metadata("calibration", calibration).encode()  # sealed with its CRC (format doc)
+    assert metadata["calibration"] == {**calibration, "hilrig.crc32": f"{zlib.crc32(record):08x}"}
     assert metadata["rosbag2"] == {"serialized_metadata": ""}
     assert attachments["robot.urdf"].data == URDF.encode()
     assert attachments["robot.urdf"].media_type == "application/xml"
