@@ -119,7 +119,8 @@ def test_topic_names_are_ros_names_and_unique() -> None:
 def test_a_failed_write_leaves_nothing_behind(
     example_table: pd.DataFrame, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    def failing(*args: object, **kwargs: object) -> None:
+    def failing(table: object, where: Path, **kwargs: object) -> None:
+        Path(where).write_bytes(b"PAR1 half a table")
         raise OSError("disk full")
 
     monkeypatch.setattr(outputs.pq, "write_table", failing)
