@@ -78,8 +78,10 @@ def _print_info(console: Console, info: FileInfo) -> None:
 
     from hilrig.recording.session import utc_iso
 
-    if info.complete:
+    if info.complete and info.verified:
         state = "[green]complete[/]"
+    elif info.complete:
+        state = "[green]complete[/] as far as read (no data CRC; `--check` reads every chunk)"
     elif info.truncated:
         state = "[bold red]TRUNCATED (unfinished; `hilrig recover` repairs it)[/]"
     elif info.problems:
@@ -96,8 +98,8 @@ def _print_info(console: Console, info: FileInfo) -> None:
     if info.loop is not None:
         loop = info.loop
         console.print(
-            f"loop: {loop.ticks:,} ticks, {loop.overruns:,} overruns,"
-            f" {loop.recorder_drops:,} recorder drops; hold ticks are not recorded in the file"
+            f"loop: {loop.overruns:,} overruns and {loop.recorder_drops:,} recorder drops by tick"
+            f" {loop.tick:,}; hold ticks are not recorded in the file"
         )
     for name, values in info.metadata.items():
         table = Table(title=f"metadata: {escape(name)}", title_justify="left", show_header=False)

@@ -19,7 +19,7 @@ import pyarrow as pa
 import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
-from hilrig.errors import RecordingError
+from hilrig.errors import OutputError, RecordingError
 from hilrig.outputs import check_new_file, new_files
 from hilrig.recording.reader import read
 
@@ -48,7 +48,7 @@ def export(
     Returns the files written and the problems met while reading (truncation, damage).
     ``progress(done, total)`` is called per chunk read. Raises RecordingError for unreadable
     input or an unknown format, OutputError when a table exists (unless ``overwrite``) or
-    cannot be written; then nothing is left behind.
+    cannot be written; then nothing is left behind (a folder it made is removed again).
     """
     if fmt not in ("parquet", "csv"):
         raise RecordingError(f"unknown export format {fmt!r} (use parquet or csv)")
@@ -56,18 +56,25 @@ def export(
     check_new_file(out / METADATA_FILE, overwrite=overwrite, create_folder=True)
     loaded = read(path, progress=progress)
     targets = [out / f"{table_name(topic)}.{fmt}" for topic in loaded.frames]
-    with new_files(
-        *targets, out / METADATA_FILE, overwrite=overwrite, create_folders=True
-    ) as temporaries:
-        for frame, temporary in zip(loaded.frames.values(), temporaries, strict=False):
+    finals = [*targets, out / METADATA_FILE]
+    with new_files(*finals, overwrite=overwrite, create_folders=True) as temporaries:
+        for frame, temporary, final in zip(
+            loaded.frames.values(), temporaries, finals, strict=False
+        ):
             table = pa.Table.from_pandas(frame.reset_index(), preserve_index=False)
-            if fmt == "parquet":
-                pq.write_table(table, temporary, compression="zstd")
-            else:
-                pa_csv.write_csv(_plain(table), temporary)
+            try:
+                if fmt == "parquet":
+                    pq.write_table(table, temporary, compression="zstd")
+                else:
+                    pa_csv.write_csv(_plain(table), temporary)
+            except (OSError, pa.ArrowException) as err:
+                raise OutputError(f"{final}: cannot be written ({err})") from err
         metadata = json.dumps(loaded.index.values, indent=2, sort_keys=True) + "\n"
-        temporaries[-1].write_text(metadata)
-    return [*targets, out / METADATA_FILE], loaded.problems
+        try:
+            temporaries[-1].write_text(metadata)
+        except OSError as err:
+            raise OutputError(f"{finals[-1]}: cannot be written ({err.strerror})") from err
+    return finals, loaded.problems
 
 
 def _plain(table: pa.Table) -> pa.Table:

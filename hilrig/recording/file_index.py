@@ -64,6 +64,7 @@ class FileIndex:
     values: dict[str, dict[str, str]] = field(default_factory=dict)
     attachments: list[IndexRef] = field(default_factory=list)
     loose_messages: list[int] = field(default_factory=list)  # offsets of messages outside chunks
+    incomplete_indexes: set[int] = field(default_factory=set)  # chunks with an index lost
     complete: bool = False
     truncation: Truncation | None = None
     damage: list[Damage] = field(default_factory=list)

@@ -3,8 +3,9 @@ whether it is whole.
 
 Counts and timing come from the message indexes (each checked against its chunk's place and
 time range), so a whole file is described without decompressing it; the loop's counters come
-from its last ``/diagnostics/loop`` message. ``check=True`` reads everything instead
-(:mod:`.survey`): the data section's CRC, every chunk's CRC, every record.
+from its last ``/diagnostics/loop`` message. The data section's CRC, when the file has one, is
+checked every time: if it does not match, or with ``check=True``, everything is read
+(:mod:`.survey`) to find what is damaged: every chunk and its CRC, every record.
 """
 
 from __future__ import annotations
@@ -31,7 +32,13 @@ from hilrig.recording.mcap_records import MESSAGE_PREFIX
 from hilrig.recording.parse import IndexRef
 from hilrig.recording.scan import add_definitions, index_mapped, open_mcap
 from hilrig.recording.session import SessionInfo
-from hilrig.recording.survey import check_data_crc, checked_chunks, loose_messages, survey
+from hilrig.recording.survey import (
+    check_data_crc,
+    checked_chunks,
+    data_crc_matches,
+    loose_messages,
+    survey,
+)
 
 #: An interval longer than this many median intervals counts as a gap.
 GAP_FACTOR = 5.0
@@ -55,10 +62,10 @@ class TopicInfo:
 
 @dataclass(frozen=True)
 class LoopCounters:
-    """The loop's cumulative counters in its last ``/diagnostics/loop`` message: ticks, ticks
-    that overran, and rows the recorder's rings refused (recorder drops)."""
+    """The loop's cumulative counters in its last readable ``/diagnostics/loop`` message: its
+    tick number, ticks that overran, and rows the recorder's rings refused (recorder drops)."""
 
-    ticks: int
+    tick: int
     overruns: int
     recorder_drops: int
 
@@ -66,13 +73,15 @@ class LoopCounters:
 @dataclass(frozen=True)
 class FileInfo:
     """A recording at a glance. ``complete``: its summary is whole and nothing read was damaged
-    or missing; ``problems`` are one line each (truncation, damage, what it costs)."""
+    or missing; ``verified``: every byte was checked (the data section's CRC matched, or all of
+    it was read); ``problems`` are one line each (truncation, damage, what it costs)."""
 
     path: Path
     size: int
     profile: str
     library: str
     complete: bool
+    verified: bool
     truncated: bool
     chunks: int
     topics: tuple[TopicInfo, ...]
@@ -106,6 +115,9 @@ def inspect(path: str | os.PathLike[str], *, check: bool = False) -> FileInfo:
     p, mm = open_mcap(path)
     try:
         index = survey(p, mm) if check else index_mapped(p, mm)
+        verified = check or data_crc_matches(mm, index)
+        if verified is False:  # changed somewhere: read all of it to find where
+            index, check, verified = survey(p, mm), True, True
         times = _checked_times(mm, index) if check else _indexed_times(mm, index)
         if check:
             check_data_crc(mm, index)
@@ -122,6 +134,7 @@ def inspect(path: str | os.PathLike[str], *, check: bool = False) -> FileInfo:
             profile=index.profile,
             library=index.library,
             complete=index.complete and not problems,
+            verified=bool(verified),
             truncated=index.truncation is not None,
             chunks=len(index.chunks),
             topics=tuple(_topic_info(index, cid, times.get(cid)) for cid in sorted(index.channels)),

@@ -195,7 +195,8 @@ def parse_chunk(c: Cursor) -> ChunkHead:
 
 
 def _check_chunk_fields(start: int, end: int, size: int, compression: str) -> None:
-    _time_range(start, end)
+    """(Its time range is checked against the session, by the index: a chunk whose times
+    alone are damaged keeps its data.)"""
     if compression not in COMPRESSIONS:
         raise BadRecordError(f"unknown compression {compression!r}")
     if size > MAX_CHUNK_BYTES:
@@ -263,6 +264,7 @@ def parse_chunk_index(c: Cursor) -> ChunkIndex:
     compression = c.string()
     compressed, size = c.take("<QQ")
     c.done()
+    _time_range(start, end)
     _check_chunk_fields(start, end, size, compression)
     return ChunkIndex(
         start, end, offset, length, offsets, index_length, compression, compressed, size

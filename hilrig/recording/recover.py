@@ -33,6 +33,7 @@ from hilrig.recording.survey import (
     CheckedChunk,
     check_data_crc,
     checked_chunks,
+    data_crc_matches,
     loose_messages,
     survey,
 )
@@ -43,7 +44,8 @@ _COMPRESSOR = zstandard.ZstdCompressor(level=3, write_checksum=True)
 @dataclass(frozen=True)
 class Recovery:
     """What :func:`recover` kept and lost; times are MCAP log times (int64 ns).
-    ``was_complete``: the source was whole and nothing in it was damaged; ``problems``: one
+    ``was_complete``: the source was whole and nothing in it was found damaged (``verified``:
+    its data section's CRC vouched for every byte of it); ``problems``: one
     line per damaged or missing part (which record, its bytes, what it cost); ``lost``:
     messages lost per topic, where the source's summary or message indexes tell."""
 
@@ -54,6 +56,7 @@ class Recovery:
     start_ns: int | None
     end_ns: int | None
     was_complete: bool
+    verified: bool
     truncation: Truncation | None
     problems: tuple[str, ...]
     lost: dict[str, int]
@@ -66,8 +69,13 @@ class Recovery:
             else "(no messages)"
         )
         lines = [f"kept {self.messages} messages in {self.chunks} chunks, {span}"]
-        if self.was_complete:
+        if self.was_complete and self.verified:
             lines.append("the source was whole and undamaged; nothing was lost")
+        elif self.was_complete:
+            lines.append(
+                "no damage was found; without a data section CRC in the source, a changed value"
+                " in a record with no check of its own would go unseen"
+            )
         lines.extend(self.problems)
         if self.lost:
             counts = ", ".join(f"{topic} {count}" for topic, count in sorted(self.lost.items()))
@@ -128,6 +136,7 @@ class _Rewriter:
             start_ns=self.start if self.counts else None,
             end_ns=self.end if self.counts else None,
             was_complete=index.complete and not problems,
+            verified=data_crc_matches(self.mm, index) is True,
             truncation=index.truncation,
             problems=tuple(problems),
             lost=self._lost(),

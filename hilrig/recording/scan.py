@@ -118,7 +118,10 @@ def _scan(mm: mmap.mmap, pos: int, index: FileIndex) -> None:
             else:
                 indexing = _add_record(index, opcode, c, pos)
         except p.BadRecordError as err:
-            indexing = None
+            if indexing is not None and mm[pos] == Op.MESSAGE_INDEX:
+                index.incomplete_indexes.add(indexing.offset)  # one of its indexes is lost
+            else:
+                indexing = None
             after = next_record(mm, pos + 1, limit)
             if after is None and isinstance(err, p.CutRecordError) and index.data_end is None:
                 index.truncation = _truncation(mm, pos, limit)

@@ -108,7 +108,8 @@ class Summary:
                 if opcode != Op.METADATA or name != ref.name or c.end != ref.offset + ref.length:
                     raise p.BadRecordError("it does not match its index in the summary")
             except p.BadRecordError as err:
-                index.damaged(f"metadata record {ref.name!r}", ref.offset, str(err))
+                end = ref.offset + ref.length
+                index.damaged(f"metadata record {ref.name!r}", ref.offset, str(err), end)
                 continue
             index.metadata.append(ref)
             index.values.setdefault(name, {}).update(values)
@@ -119,7 +120,8 @@ class Summary:
                 if head is None or (head.name, head.data_size) != (ref.name, ref.data_size):
                     raise p.BadRecordError("it does not match its index in the summary")
             except p.BadRecordError as err:
-                index.damaged(f"attachment record {ref.name!r}", ref.offset, str(err))
+                end = ref.offset + ref.length
+                index.damaged(f"attachment record {ref.name!r}", ref.offset, str(err), end)
                 continue
             index.attachments.append(ref)
 
@@ -127,10 +129,12 @@ class Summary:
         """After a scan: a metadata record the summary lists but the scan did not find intact
         where it says is damaged."""
         found = {(ref.offset, ref.name) for ref in index.metadata}
+        reported = {d.offset for d in index.damage}
         for ref in self.metadata:
-            if (ref.offset, ref.name) not in found:
+            if (ref.offset, ref.name) not in found and ref.offset not in reported:
                 detail = "it is missing or damaged where the summary lists it"
-                index.damaged(f"metadata record {ref.name!r}", ref.offset, detail)
+                end = ref.offset + ref.length
+                index.damaged(f"metadata record {ref.name!r}", ref.offset, detail, end)
 
     def compare_definitions(self, index: FileIndex) -> None:
         """After a scan: schemas and channels of the data section that differ from the

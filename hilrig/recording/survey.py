@@ -14,7 +14,7 @@ import mmap
 import struct
 import zlib
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from hilrig.recording.chunks import (
@@ -70,7 +70,7 @@ def checked_chunks(mm: mmap.mmap, index: FileIndex) -> Iterator[CheckedChunk]:
             data, crc_ok = inflate(mm, chunk)
             entries, definitions, index_wrong = entries_of(data, hint)
         except ChunkError as err:
-            cost = _cost(index, chunk, hint)
+            cost = _cost(mm, index, chunk)
             index.damage.append(Damage("chunk record", chunk.offset, str(err), end, cost))
             continue
         add_definitions(index, data, definitions)
@@ -117,26 +117,42 @@ def _known(index: FileIndex, chunk: ChunkInfo, entries: Entries) -> Entries:
     return {cid: e for cid, e in entries.items() if cid not in unknown}
 
 
-def _cost(index: FileIndex, chunk: ChunkInfo, hint: Entries | None) -> str:
+def _cost(mm: mmap.mmap, index: FileIndex, chunk: ChunkInfo) -> str:
+    """What losing ``chunk`` costs: its time span and, from the message indexes that are
+    intact, how many messages of which topic."""
     span = f"from {utc_iso(chunk.start_ns)} to {utc_iso(chunk.end_ns)}"
-    if hint is None:
+    counts: dict[str, int] = {}
+    complete = chunk.offset not in index.incomplete_indexes
+    for cid, offset in sorted(chunk.message_index_offsets.items()):
+        try:
+            one = replace(chunk, message_index_offsets={cid: offset})
+            found = indexed_entries(mm, one)
+        except ChunkIndexError:
+            complete = False
+            continue
+        channel = index.channels.get(cid)
+        counts[channel.topic if channel else f"channel {cid}"] = len(found[cid][0]) if found else 0
+    if not counts:
         return f"its messages {span} are lost (how many is not known)"
-    counts = ", ".join(
-        f"{index.channels[cid].topic if cid in index.channels else cid} {len(t)}"
-        for cid, (t, _) in sorted(hint.items())
-    )
-    total = sum(len(t) for t, _ in hint.values())
-    return f"its {total} messages {span} are lost ({counts})"
+    total = sum(counts.values())
+    listed = ", ".join(f"{topic} {count}" for topic, count in counts.items())
+    how_many = f"{total}" if complete else f"at least {total}"
+    return f"its messages {span} are lost: {how_many} ({listed})"
+
+
+def data_crc_matches(mm: mmap.mmap, index: FileIndex) -> bool | None:
+    """Whether the data section's bytes match its CRC; None when the file gives none."""
+    if index.data_end is None or not index.data_crc:
+        return None
+    return zlib.crc32(mm[: index.data_end]) == index.data_crc
 
 
 def check_data_crc(mm: mmap.mmap, index: FileIndex) -> None:
     """Compare the data section's CRC (when the file gives one) with its bytes; a mismatch is
     reported only when no damaged record in the data section explains it."""
-    if index.data_end is None or not index.data_crc:
+    if index.data_end is None or any(d.offset < index.data_end for d in index.damage):
         return
-    if any(d.offset < index.data_end for d in index.damage):
-        return
-    if zlib.crc32(mm[: index.data_end]) != index.data_crc:
+    if data_crc_matches(mm, index) is False:
         detail = (
             "CRC mismatch, but no damaged record was found: a record without a check of its own"
             " changed (the header, or a metadata record of a file without CRCs of its own)"

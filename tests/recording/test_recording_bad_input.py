@@ -66,10 +66,10 @@ def test_corrupt_chunk_data_is_skipped_and_reported(small_session: Written, tmp_
     (line,) = recovery.problems
     assert line.startswith(f"{path}: chunk record at bytes {offset}-")
     assert line.endswith(
-        "its 2002 messages from 2026-01-01T00:00:00.500000000Z to"
-        " 2026-01-01T00:00:00.749000017Z are lost (/ft/wrist 250, /ft/base 250, /joint_states"
-        " 250, /controller/input 250, /controller/state 250, /trajectory/desired 250,"
-        " /trajectory/commanded 250, /events 2, /diagnostics/loop 250)"
+        "its messages from 2026-01-01T00:00:00.500000000Z to 2026-01-01T00:00:00.749000017Z are"
+        " lost: 2002 (/ft/wrist 250, /ft/base 250, /joint_states 250, /controller/input 250,"
+        " /controller/state 250, /trajectory/desired 250, /trajectory/commanded 250, /events 2,"
+        " /diagnostics/loop 250)"
     )
     assert kept + 2002 == len(small_session.samples)
     assert recovery.lost == {
@@ -86,8 +86,8 @@ def test_corrupt_chunk_crc_field_is_found_by_check_and_recover(
     path = corrupted(small_session, tmp_path, crc_at, "bad-crc.mcap")
     with pytest.raises(CRCValidationError):
         official_messages(path)
-    assert inspect(path).problems == ()  # the quick look reads no chunk
-    described = inspect(path, check=True)
+    assert inspect(path).problems == inspect(path, check=True).problems  # the data CRC tells
+    described = inspect(path)
     end = offset + 9 + int.from_bytes(path.read_bytes()[offset + 1 : offset + 9], "little")
     assert described.problems == (
         f"{path}: chunk record at bytes {offset}-{end - 1}: its CRC field is damaged; zstd's"
@@ -184,7 +184,9 @@ def test_a_damaged_metadata_record_is_reported_and_named(
     data[map_at : map_at + 4] = struct.pack("<I", 0xFFFFFF00)  # the map runs past the record
     path = tmp_path / "bad-metadata.mcap"
     path.write_bytes(bytes(data))
-    line = f"{path}: metadata record 'session' at byte {ref.offset}: its fields run past its end"
+    end = ref.offset + ref.length - 1
+    what = f"metadata record 'session' at bytes {ref.offset}-{end}"
+    line = f"{path}: {what}: its fields run past its end"
     described = inspect(path)
     assert described.problems == (line,) and not described.complete
     assert "session" not in described.metadata and "calibration" in described.metadata
