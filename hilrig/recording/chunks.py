@@ -13,7 +13,7 @@ import queue
 import threading
 import zlib
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import lz4.frame  # type: ignore[import-untyped]
 import numpy as np
@@ -23,6 +23,7 @@ import zstandard
 from hilrig.recording.file_index import ChunkInfo
 from hilrig.recording.mcap_records import RECORD_HEADER, Op
 from hilrig.recording.parse import (
+    MAX_CHUNK_BYTES,
     BadRecordError,
     kind,
     parse_message_head,
@@ -115,12 +116,23 @@ def _inflate_into(
     raise ChunkError("CRC mismatch: the chunk is corrupt")
 
 
-def inflate(mm: mmap.mmap, chunk: ChunkInfo) -> tuple[bytes, bool]:
-    """The chunk's records, decompressed and checked (see :func:`_inflate_into`), and whether
-    its CRC field matched. Raises ChunkError."""
+def inflate(mm: mmap.mmap, chunk: ChunkInfo) -> tuple[bytes, str]:
+    """The chunk's records, decompressed and checked (see :func:`_inflate_into`), and which of
+    its header's fields is damaged ("" for none): a zstd frame that carries its own size and
+    checksum is read whatever size field the header gives. Raises ChunkError."""
+    raw = mm[chunk.data_offset : chunk.data_offset + chunk.compressed_size]
+    damaged = ""
+    if chunk.compression == "zstd" and _self_checked(raw):
+        try:
+            size = zstandard.get_frame_parameters(raw).content_size
+        except zstandard.ZstdError as err:
+            raise ChunkError(f"compressed data is corrupt ({err})") from err
+        if 0 < size <= MAX_CHUNK_BYTES and size != chunk.uncompressed_size:
+            chunk, damaged = replace(chunk, uncompressed_size=size), "size"
     out = bytearray(chunk.uncompressed_size)
-    crc_ok = _inflate_into(mm, chunk, memoryview(out), zstandard.ZstdDecompressor())
-    return bytes(out), crc_ok
+    if not _inflate_into(mm, chunk, memoryview(out), zstandard.ZstdDecompressor()):
+        damaged = damaged or "CRC"
+    return bytes(out), damaged
 
 
 @dataclass

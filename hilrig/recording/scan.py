@@ -55,9 +55,9 @@ def open_mcap(path: str | os.PathLike[str]) -> tuple[Path, mmap.mmap]:
 def index_file(path: str | os.PathLike[str]) -> FileIndex:
     """Index ``path`` (see the module docstring). Raises RecordingError (one line, naming the
     file) when it is not an MCAP file at all."""
-    p_, mm = open_mcap(path)
+    opened, mm = open_mcap(path)
     try:
-        return index_mapped(p_, mm)
+        return index_mapped(opened, mm)
     finally:
         mm.close()
 
@@ -243,7 +243,7 @@ def _check_metadata(index: FileIndex) -> None:
 
 def _check_times(index: FileIndex) -> None:
     """A chunk whose time range the session cannot have is damaged: its range becomes the
-    whole window, so that its messages' own times (checked when read) decide."""
+    whole window, so that the log times in its (checked) data decide."""
     window = index.window
     for i, chunk in enumerate(index.chunks):
         problem = window.problem(chunk.start_ns, chunk.end_ns)

@@ -62,12 +62,8 @@ def checked_chunks(mm: mmap.mmap, index: FileIndex) -> Iterator[CheckedChunk]:
     for chunk in index.chunks:
         end = chunk.offset + chunk.length
         try:
-            hint: Entries | None = indexed_entries(mm, chunk)
-        except ChunkIndexError as err:
-            hint = None
-            index.damaged("message index records of the chunk", chunk.offset, str(err))
-        try:
-            data, crc_ok = inflate(mm, chunk)
+            data, damaged_field = inflate(mm, chunk)
+            hint = _hint(mm, index, replace(chunk, uncompressed_size=len(data)))
             entries, definitions, index_wrong = entries_of(data, hint)
         except ChunkError as err:
             cost = _cost(mm, index, chunk)
@@ -77,8 +73,10 @@ def checked_chunks(mm: mmap.mmap, index: FileIndex) -> Iterator[CheckedChunk]:
         if index_wrong:
             detail = "they do not match the chunk's messages; rebuilt from the chunk"
             index.damaged("message index records of the chunk", chunk.offset, detail)
-        if not crc_ok:
-            detail = "its CRC field is damaged; zstd's own checksum vouches for its data"
+        if damaged_field:
+            detail = (
+                f"its {damaged_field} field is damaged; zstd's own checksum vouches for its data"
+            )
             index.damaged("chunk record", chunk.offset, detail, end)
         start, stop = _span(entries)
         widened = (chunk.start_ns, chunk.end_ns) == (index.window.earliest, index.window.latest)
@@ -93,8 +91,17 @@ def checked_chunks(mm: mmap.mmap, index: FileIndex) -> Iterator[CheckedChunk]:
         dropped = len(known) < len(entries)
         if dropped:
             start, stop = _span(known)
-        header_damaged = times_wrong or not crc_ok
+        header_damaged = times_wrong or bool(damaged_field)
         yield CheckedChunk(chunk, data, known, start, stop, header_damaged, dropped)
+
+
+def _hint(mm: mmap.mmap, index: FileIndex, chunk: ChunkInfo) -> Entries | None:
+    """The chunk's message indexes, None when it has none or one is damaged (reported)."""
+    try:
+        return indexed_entries(mm, chunk)
+    except ChunkIndexError as err:
+        index.damaged("message index records of the chunk", chunk.offset, str(err))
+        return None
 
 
 def _span(entries: Entries) -> tuple[int | None, int | None]:

@@ -317,3 +317,24 @@ def test_flips_in_the_example_recordings_session_record_are_reported(tmp_path: P
         assert not recovery.was_complete or not described.problems
         assert sum(official_messages(out).values()) == recovery.messages
         out.unlink()
+
+
+def test_a_damaged_size_field_loses_nothing(small_session: Written, tmp_path: Path) -> None:
+    """zstd's frame carries its own size and checksum: recover keeps the chunk, mended."""
+    chunks = sorted(
+        summary_of(small_session.path).chunk_indexes, key=lambda c: c.chunk_start_offset
+    )
+    second = chunks[1]
+    source = tmp_path / "cut.mcap"  # cut, so that no summary repeats the size
+    data = bytearray(small_session.path.read_bytes()[: chunks[3].chunk_start_offset])
+    data[second.chunk_start_offset + 9 + 16 + 1] ^= 0x01  # its uncompressed size
+    source.write_bytes(bytes(data))
+    end = second.chunk_start_offset + second.chunk_length - 1
+    recovery = recover(source, tmp_path / "recovered.mcap")
+    assert recovery.problems[1:] == (
+        f"{source}: chunk record at bytes {second.chunk_start_offset}-{end}: its size field is"
+        " damaged; zstd's own checksum vouches for its data",
+    )
+    last = chunks[2].message_end_time
+    expected = sum(1 for _, s in small_session.samples if small_session.log_ns(s) <= last)
+    assert recovery.messages == expected == sum(official_messages(recovery.output).values())
