@@ -6,7 +6,7 @@ nothing opens a window or keeps global state. Each law has one colour in every f
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -171,26 +171,31 @@ def plot_sweep(run: SweepRun, path: Path) -> Path:
     return _save(figure, path)
 
 
-def _experiment_plots(run: ExperimentRun, out_dir: Path) -> list[Path]:
+def figure_names() -> tuple[str, ...]:
+    """Every figure's file name, in the order :func:`write_plots` lists them."""
+    names = list(SWEEP_FIGURES)
+    for figures in FIGURES.values():
+        names += [figures.inputs, figures.damping, figures.stiffness, *figures.offsets]
+    return tuple(names)
+
+
+def _experiment_plots(run: ExperimentRun, paths: Mapping[str, Path]) -> None:
     figures = FIGURES[run.spec.experiment]
     drawers: list[tuple[str, Callable[[ExperimentRun, Path], Path]]] = [
         (figures.inputs, plot_inputs),
         (figures.damping, plot_damping),
         (figures.stiffness, plot_stiffness),
     ]
-    paths = [draw(run, out_dir / name) for name, draw in drawers]
+    for name, draw in drawers:
+        draw(run, paths[name])
     for axis, name in zip(run.spec.reported_axes, figures.offsets, strict=True):
-        paths.append(plot_offsets(run, axis, out_dir / name))
-    return paths
+        plot_offsets(run, axis, paths[name])
 
 
-def write_plots(results: PaperResults, out_dir: Path) -> list[Path]:
-    """Write every figure as PNG into out_dir; returns the paths in figure order."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = [
-        plot_sweep(run, out_dir / name)
-        for run, name in zip(results.sweeps, SWEEP_FIGURES, strict=True)
-    ]
+def write_plots(results: PaperResults, paths: Mapping[str, Path]) -> None:
+    """Write every figure as PNG, each to ``paths[<its name>]`` (names: :func:`figure_names`;
+    the folders must exist)."""
+    for sweep, name in zip(results.sweeps, SWEEP_FIGURES, strict=True):
+        plot_sweep(sweep, paths[name])
     for run in results.runs:
-        paths += _experiment_plots(run, out_dir)
-    return paths
+        _experiment_plots(run, paths)

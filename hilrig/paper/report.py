@@ -9,13 +9,14 @@ changes in %.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
 from rich import box
 from rich.table import Table
+from rich.text import Text
 
 from hilrig.paper.experiments import (
     EXPERIMENT_3_DAMPING_N_S_PER_M,
@@ -248,34 +249,83 @@ def _document(title: str, sections: Iterable[Section], notes: Sequence[str]) -> 
     return "\n".join(parts)
 
 
-def write_tables(table: pd.DataFrame, sweeps: pd.DataFrame, out_dir: Path) -> list[Path]:
+#: The tables' file names, in the order :func:`write_tables` writes them.
+TABLE_NAMES = ("paper-table.md", "paper-table.csv", "paper-sweeps.md", "paper-sweeps.csv")
+
+
+def write_tables(table: pd.DataFrame, sweeps: pd.DataFrame, paths: Mapping[str, Path]) -> None:
     """Write paper-table.{md,csv} (from ``comparison_table``) and paper-sweeps.{md,csv} (from
-    ``sweep_table``) into out_dir, which is created if needed; returns the paths written."""
-    out_dir.mkdir(parents=True, exist_ok=True)
+    ``sweep_table``), each to ``paths[<its name>]`` (the folders must exist)."""
     documents = (
         ("paper-table", table, "section 3.4", display_sections(table), NOTES),
         ("paper-sweeps", sweeps, "section 2.1", [sweep_section(sweeps)], SWEEP_NOTES),
     )
-    paths = []
     for stem, frame, part, sections, notes in documents:
         text = _document(f"Paper reproduction: {part}", sections, notes)
-        paths.append(out_dir / f"{stem}.md")
-        paths[-1].write_text(text, encoding="utf-8")
-        paths.append(out_dir / f"{stem}.csv")
-        frame.to_csv(paths[-1], index=False)
-    return paths
+        paths[f"{stem}.md"].write_text(text, encoding="utf-8")
+        frame.to_csv(paths[f"{stem}.csv"], index=False)
 
 
-def rich_table(section: Section) -> Table:
-    """A rich Table of a display section (its terminal subset), numbers right-aligned."""
+def rich_table(section: Section, width: int | None = None) -> Table:
+    """A rich Table of a display section (its terminal subset), numbers right-aligned, for a
+    console ``width`` columns wide (None: as wide as it needs).
+
+    A number is never cut: each numeric column is as wide as its widest cell (its header wraps
+    between words); when the table is wider than ``width`` the label columns share what is left
+    and wrap, between words while they can. Cells are shown as given (no markup)."""
     table = Table(title=section.title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
     frame = section.frame
     if section.terminal_columns is not None:
         frame = frame[list(section.terminal_columns)]
-    for column in frame.columns:
-        numeric = column not in _LABEL_COLUMNS
-        header = str(column).replace(" (", "\n(")  # units under the name: narrower columns
-        table.add_column(header, justify="right" if numeric else "left", no_wrap=not numeric)
-    for row in frame.itertuples(index=False):
-        table.add_row(*(str(v) for v in row))
+    headers = [str(c).replace(" (", "\n(") for c in frame.columns]  # units under the name
+    cells = [[str(v) for v in frame[c]] for c in frame.columns]
+    labels = [c in _LABEL_COLUMNS for c in frame.columns]
+    widths = _widths(headers, cells, labels, width)
+    for header, label, column_width in zip(headers, labels, widths, strict=True):
+        if label:
+            table.add_column(header, width=column_width, overflow="fold")
+        else:
+            table.add_column(header, justify="right", width=column_width)
+    for row in zip(*cells, strict=True):
+        table.add_row(*(Text(v) for v in row))
     return table
+
+
+def _widths(
+    headers: list[str], cells: list[list[str]], labels: list[bool], width: int | None
+) -> list[int | None]:
+    """Each column's width (None: rich's choice) so that the table fits ``width`` if it can
+    without cutting a number."""
+    columns = list(zip(headers, cells, labels, strict=True))
+    longest = [max(map(len, [*c, *h.splitlines()])) for h, c, _ in columns]
+    overhead = (len(columns) + 1) + (2 * len(columns) - 2)  # edges, separators, padding
+    if width is None or sum(longest) + overhead <= width:
+        return [None] * len(columns)
+    words = [max(len(w) for text in [*c, h] for w in text.split()) for h, c, _ in columns]
+    room = (
+        width
+        - overhead
+        - sum(n for n, (_, _, label) in zip(words, columns, strict=True) if not label)
+    )
+    shares = iter(
+        _share(
+            room,
+            [n for n, (_, _, label) in zip(words, columns, strict=True) if label],
+            [n for n, (_, _, label) in zip(longest, columns, strict=True) if label],
+        )
+    )
+    return [next(shares) if label else n for n, (_, _, label) in zip(words, columns, strict=True)]
+
+
+def _share(room: int, words: list[int], wanted: list[int]) -> list[int]:
+    """``room`` columns shared by the label columns: each its longest word if there is room for
+    all of them (what is left goes where it is wanted), else a fair part of at least 3."""
+    if room < sum(words):
+        return [max(3, room * w // max(sum(words), 1)) for w in words]
+    shares = list(words)
+    left = room - sum(words)
+    for i, want in enumerate(wanted):
+        extra = min(left, want - shares[i])
+        shares[i] += max(extra, 0)
+        left -= max(extra, 0)
+    return shares

@@ -6,6 +6,8 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
+import hilrig.paper.reproduce
+from hilrig.cli import run
 from hilrig.cli.app import app
 from hilrig.paper.experiments import OFFSET_DISPLAY, PUBLISHED_CHANGES, PUBLISHED_PEAKS
 from hilrig.paper.reproduce import Reproduction, reproduce
@@ -81,9 +83,56 @@ def test_sweep_csv_has_one_row_per_case(reproduction: Reproduction) -> None:
     )
 
 
-def test_paper_command_writes_files_and_prints_the_table(tmp_path: Path) -> None:
-    result = CliRunner().invoke(app, ["paper", "--out", str(tmp_path)])
+def test_paper_command_writes_files_and_prints_the_table_in_80_columns(
+    tmp_path: Path,
+) -> None:
+    out = tmp_path / "a[red]b"  # a file name is shown as it is, never read as markup
+    result = CliRunner().invoke(app, ["paper", "--out", str(out)], env={"COLUMNS": "80"})
     assert result.exit_code == 0, result.output
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(TABLES + FIGURES)
+    assert sorted(p.name for p in out.iterdir()) == sorted(TABLES + FIGURES)
     assert "end effector: max offset in mm" in result.output
-    assert str(tmp_path / "paper-table.md") in result.output
+    assert f"  {out / 'paper-table.md'}\n" in result.output
+    lines = result.output.splitlines()
+    assert max(len(line) for line in lines if str(out) not in line) <= 80
+    assert "…" not in result.output
+    # every number of the changes table, whole, on the line of its axis and comparison
+    table = pd.read_csv(out / "paper-table.csv")
+    changes = table[table["quantity"] == "offset change"]
+    for row in changes.itertuples():
+        numbers = [f"{v:.2f}" for v in (row.ours, row.paper, row.paper_recomputed) if v == v]
+        assert any(all(n in line.split() for n in numbers) for line in lines), row
+
+
+def test_paper_refuses_an_existing_output_before_any_work(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    def no_work(**kwargs: object) -> None:
+        raise AssertionError("the simulations ran")
+
+    monkeypatch.setattr(hilrig.paper.reproduce, "run_all", no_work)
+    (tmp_path / "fig13-offset-x.png").write_bytes(b"an earlier figure")
+    assert run(["paper", "--out", str(tmp_path)]) == 2
+    assert capsys.readouterr().err == (
+        f"error: {tmp_path / 'fig13-offset-x.png'}: already exists; refusing to overwrite it; "
+        "choose another --out, or move the earlier outputs away\n"
+    )
+    assert [p.name for p in tmp_path.iterdir()] == ["fig13-offset-x.png"]
+    assert (tmp_path / "fig13-offset-x.png").read_bytes() == b"an earlier figure"
+    (tmp_path / "afile").write_bytes(b"")
+    assert run(["paper", "--out", str(tmp_path / "afile" / "out")]) == 2
+    assert capsys.readouterr().err.startswith(
+        f"error: {tmp_path / 'afile' / 'out' / 'paper-table.md'}: {tmp_path / 'afile'} is not a "
+        "folder; "
+    )
+
+
+def test_a_paper_run_that_fails_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def broken(*args: object) -> None:
+        raise OSError("disk full")
+
+    monkeypatch.setattr(hilrig.paper.reproduce, "write_plots", broken)
+    with pytest.raises(OSError, match="disk full"):
+        reproduce(tmp_path / "new" / "out")
+    assert not list(tmp_path.iterdir())  # no table, no temporary, no folder
