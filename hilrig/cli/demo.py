@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from hilrig.cli.app import app
+from hilrig.errors import HilrigError
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -24,7 +25,7 @@ DEMO_SUBJECT = "D001"
 #: The laws each session is replayed through, compared against the baseline.
 LAWS = ("adaptive", "variable-stiffness", "fixed")
 BASELINE = "fixed"
-#: A session's outputs, by suffix of its scenario's name; a new demo replaces them.
+#: A session's outputs, by suffix of its scenario's name; none is ever overwritten.
 OUTPUTS = (".mcap", "-replay.parquet", ".rrd")
 
 
@@ -46,40 +47,62 @@ SESSIONS = (
 
 @app.command()
 def demo(
-    out: Annotated[Path, typer.Option(help="Directory for the paper tables and recordings.")] = (
-        Path("build/demo")
-    ),
+    out: Annotated[
+        Path,
+        typer.Option(
+            help="Directory for the paper tables and recordings (made if needed; nothing in it "
+            "is ever overwritten)."
+        ),
+    ] = Path("build/demo"),
 ) -> None:
     """The paper's simulations, then its end-effector and body collisions on the emulated rig,
     each replayed through the three laws, compared, and saved as a Rerun view (.rrd)."""
     from rich.console import Console
+    from rich.text import Text
 
+    from hilrig.cli.paper import ELSEWHERE, check_outputs
     from hilrig.cli.session_output import print_result
+    from hilrig.errors import OutputError
     from hilrig.paper.report import rich_table
     from hilrig.paper.reproduce import reproduce
 
     console = Console(soft_wrap=True)
     if not console.is_terminal:  # keep whole table rows when piped
         console = Console(soft_wrap=True, width=160)
-    for session in SESSIONS:
-        for suffix in OUTPUTS:
-            (out / f"{session.scenario}{suffix}").unlink(missing_ok=True)
-    reproduction = reproduce(out / "paper")
-    console.print(rich_table(reproduction.sections[0]))
-    console.print(f"paper tables and figures in {out / 'paper'}\n", highlight=False)
+    try:
+        check_outputs(outputs(out))  # every output, before any work
+        reproduction = reproduce(out / "paper")
+    except OutputError as err:
+        err.add_note(ELSEWHERE)
+        raise
+    console.print(rich_table(reproduction.sections[0], console.width))
+    console.print(f"paper tables and figures in {out / 'paper'}\n", markup=False, highlight=False)
     peaks: dict[str, list[float]] = {}
     for session in SESSIONS:
-        about = f"({session.trajectory} task, {session.duration_s:g} s)"
-        console.print(f"[bold]session {session.scenario}[/] {about}")
+        about = f" ({session.trajectory} task, {session.duration_s:g} s)"
+        console.print(Text.assemble((f"session {session.scenario}", "bold"), about))
         result = record(session, out)
         print_result(console, result)
+        problem = "; ".join(filter(None, (result.ended_by, result.recorder_error)))
+        if problem:
+            raise HilrigError(f"session {session.scenario} ended early: {problem}")
         peaks[session.scenario] = peak_offsets(result.path)
         compare_and_view(console, result.path)
     console.print(peaks_table(peaks))
 
 
+def outputs(out: Path) -> list[Path]:
+    """Every file the demo writes into ``out``."""
+    from hilrig.paper.reproduce import output_names
+
+    paths = [out / "paper" / name for name in output_names()]
+    return paths + [out / f"{s.scenario}{suffix}" for s in SESSIONS for suffix in OUTPUTS]
+
+
 def record(session: DemoSession, out: Path) -> SessionResult:
-    """``session`` recorded on the emulated rig to ``out/<scenario>.mcap``."""
+    """``session`` recorded on the emulated rig to ``out/<scenario>.mcap``; Ctrl-C or SIGTERM
+    ends it cleanly (the recording is kept), then the demo stops (KeyboardInterrupt)."""
+    import signal
     import threading
 
     from hilrig.rig import LoopConfig, SessionConfig, record_session
@@ -93,25 +116,39 @@ def record(session: DemoSession, out: Path) -> SessionResult:
         loop=LoopConfig(),
         session_id=f"demo-{session.scenario}",
     )
-    return record_session(config, stop=threading.Event())
+    stop = threading.Event()
+    before = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        result = record_session(config, stop=stop)
+    finally:
+        for signum, handler in before.items():
+            signal.signal(signum, handler)
+    if stop.is_set():
+        raise KeyboardInterrupt
+    return result
 
 
 def compare_and_view(console: Console, session: Path) -> None:
     """Replay ``session`` through LAWS, print their comparison against BASELINE, save the
-    results beside it as ``<stem>-replay.parquet`` and its view as ``<stem>.rrd``."""
+    results beside it as ``<stem>-replay.parquet`` and its view as ``<stem>.rrd`` (both or
+    neither)."""
     from hilrig.analysis import DEFAULT_EVENTS, analyze, load_replay
     from hilrig.cli.analyze import print_source
+    from hilrig.outputs import new_files
     from hilrig.replay import parse_specs, run, write_parquet
     from hilrig.viz import save_rrd, scene_from_session
 
     specs = parse_specs(list(LAWS))
     replayed = session.with_name(f"{session.stem}-replay.parquet")
-    write_parquet(run(session, specs), replayed)
-    print_source(console, analyze(load_replay(replayed)), BASELINE, DEFAULT_EVENTS.delta)
     view = session.with_suffix(".rrd")
-    save_rrd(scene_from_session(session, specs), view)
+    with new_files(replayed, view) as (replayed_tmp, view_tmp):
+        write_parquet(run(session, specs), replayed_tmp)
+        save_rrd(scene_from_session(session, specs), view_tmp)
+    print_source(console, analyze(load_replay(replayed)), BASELINE, DEFAULT_EVENTS.delta)
     console.print(
-        f"replays in {replayed}; view: rerun {view}  (or: hilrig view {session} -c ...)\n"
+        f"replays in {replayed}; view: rerun {view}  (or: hilrig view {session} -c ...)\n",
+        markup=False,
+        highlight=False,
     )
 
 

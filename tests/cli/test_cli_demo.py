@@ -15,20 +15,25 @@ from rrd_helpers import Rrd
 HILRIG = Path(sys.executable).with_name("hilrig")
 
 
+def demo(out: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [str(HILRIG), "demo", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=1200,  # a loaded machine compiling every kernel afresh is slow
+    )
+
+
 def test_demo_writes_the_paper_tables_sessions_comparisons_and_views(tmp_path: Path) -> None:
-    for _ in range(2):  # a second demo replaces the first's outputs
-        result = subprocess.run(
-            [str(HILRIG), "demo", "--out", str(tmp_path)],
-            capture_output=True,
-            text=True,
-            timeout=1200,  # a loaded machine compiling every kernel afresh is slow
-        )
-        assert result.returncode == 0, result.stderr
+    out = tmp_path / "a[red]b"  # file names are shown as they are, never read as markup
+    result = demo(out)
+    assert result.returncode == 0, result.stderr
     assert result.stdout.count("comparison (change vs fixed)") == 2
     assert "end effector: max offset in mm" in result.stdout
-    assert (tmp_path / "paper" / "paper-table.md").exists()
+    assert f"paper tables and figures in {out / 'paper'}" in result.stdout
+    assert (out / "paper" / "paper-table.md").exists()
     for scenario, axes in (("paper-end-effector", (0, 1, 2)), ("paper-body", (3, 4))):
-        path = tmp_path / f"{scenario}.mcap"
+        path = out / f"{scenario}.mcap"
         assert f"recorded {path}" in result.stdout
         assert inspect(path).complete
         state = load(path, topics=["/controller/state"])["/controller/state"]
@@ -36,9 +41,32 @@ def test_demo_writes_the_paper_tables_sessions_comparisons_and_views(tmp_path: P
         assert (peaks[list(axes)] > 0.005).all()  # the collided axes yielded
         others = [i for i in range(9) if i not in axes]
         assert (peaks[others] < 0.001).all()  # the others held their task
-        replayed = pd.read_parquet(tmp_path / f"{scenario}-replay.parquet")
+        replayed = pd.read_parquet(out / f"{scenario}-replay.parquet")
         assert list(replayed["run"].unique()) == ["adaptive", "variable-stiffness", "fixed"]
-        view = Rrd(tmp_path / f"{scenario}.rrd")
+        view = Rrd(out / f"{scenario}.rrd")
         runs = ("recorded", "adaptive", "variable-stiffness", "fixed")
         assert {f"/series/offset/x/{r}" for r in runs} <= view.entities()
-        assert f"view: rerun {tmp_path / scenario}.rrd" in result.stdout
+        assert f"view: rerun {out / scenario}.rrd" in result.stdout
+    assert not [p for p in out.rglob(".*")]  # no temporary left
+    # a second demo into the same folder overwrites nothing and says so before any work
+    files = {p: p.stat().st_mtime_ns for p in out.rglob("*")}
+    again = demo(out)
+    assert (again.returncode, again.stdout) == (2, "")
+    assert again.stderr == (
+        f"error: {out / 'paper' / 'paper-table.md'}: already exists; refusing to overwrite it; "
+        "choose another --out, or move the earlier outputs away\n"
+    )
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*")} == files
+
+
+def test_a_recording_in_the_way_is_refused_before_any_work(tmp_path: Path) -> None:
+    kept = tmp_path / "paper-end-effector.mcap"
+    kept.write_bytes(b"a volunteer's session")
+    result = demo(tmp_path)
+    assert (result.returncode, result.stdout) == (2, "")
+    assert result.stderr == (
+        f"error: {kept}: already exists; refusing to overwrite it; choose another --out, or "
+        "move the earlier outputs away\n"
+    )
+    assert list(tmp_path.iterdir()) == [kept]  # no paper folder, no session
+    assert kept.read_bytes() == b"a volunteer's session"
