@@ -21,26 +21,35 @@ def serve(
         typer.Option("--scenario", help=f"Volunteer model: {', '.join(SCENARIO_NAMES)}."),
     ] = "paper-end-effector",
     rate_hz: Annotated[
-        float, typer.Option("--rate", help="Frame rate of both streams, Hz.")
+        float, typer.Option("--rate", help="Frame rate of both streams, Hz (1 to 10000).")
     ] = 1000.0,
     port_path: Annotated[
         Path | None,
         typer.Option(help="Where to put the F/T sensor's serial port link (default: a temp dir)."),
     ] = None,
-    seed: Annotated[int, typer.Option(help="Seed of the sensor and joint-torque noise.")] = 0,
+    seed: Annotated[
+        int, typer.Option(min=0, help="Seed of the sensor and joint-torque noise.")
+    ] = 0,
 ) -> None:
     """Run the emulated AUBO-i5 and wrist F/T sensor; print their endpoints; stop on Ctrl-C.
 
     The rig's slot loop runs in this process's main thread (real-time priority where permitted).
     """
+    import math
     import signal
 
     from rich.console import Console
 
     from hilrig.emulator.rig import EmulatedRig, RigConfig
     from hilrig.emulator.scenarios import scenario
+    from hilrig.errors import HilrigError
 
-    console = Console(soft_wrap=True, highlight=False)  # endpoint lines: never wrapped
+    if not (math.isfinite(rate_hz) and 1.0 <= rate_hz <= 10_000.0):
+        raise HilrigError(f"--rate {rate_hz:g}: must be within 1..10000 Hz")
+    if port_path is not None:
+        check_port_folder(port_path)
+    # endpoint lines: never wrapped, a path shown as it is (no markup)
+    console = Console(soft_wrap=True, highlight=False, markup=False)
     config = RigConfig(rate_hz=rate_hz, seed=seed)
     rig = EmulatedRig(scenario(volunteer), config=config, port_path=port_path)
     for signum in (signal.SIGINT, signal.SIGTERM):
@@ -61,3 +70,19 @@ def serve(
         f"frames, {counts.modbus_writes} target writes, {counts.slots_late} late slots, "
         f"{counts.slots_skipped} skipped"
     )
+
+
+def check_port_folder(path: Path) -> None:
+    """Raise OutputError unless the sensor's port link can be made in ``path``'s folder (what is
+    at ``path`` itself the emulator checks: it never replaces anything)."""
+    import os
+
+    from hilrig.errors import OutputError
+
+    folder = path.parent
+    if not folder.exists():
+        raise OutputError(f"--port-path {path}: folder {folder} does not exist")
+    if not folder.is_dir():
+        raise OutputError(f"--port-path {path}: {folder} is not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputError(f"--port-path {path}: folder {folder} is not writable")
