@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from hilrig.emulator.rig import RigEndpoints
-from hilrig.errors import HilrigError
+from hilrig.errors import HilrigError, OutputError
 from hilrig.outputs import check_new_file
 
 #: Where new recordings go unless told.
@@ -86,5 +86,15 @@ def session_path(out: Path | None, stem: str) -> Path:
     the session makes it and its folder when it starts). Raises OutputError (one line) if a file
     is there already or its folder cannot be written or made."""
     path = out or RECORDINGS / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
-    check_new_file(path, create_folder=True)
+    check_recording_path(path)
     return path
+
+
+def check_recording_path(path: Path) -> None:
+    """Raise OutputError (one line) unless a new recording can be made at ``path`` (its missing
+    folders made): nothing there, and the nearest existing folder above it writable."""
+    try:
+        check_new_file(path, create_folder=True)
+    except NotADirectoryError:  # a file where one of its folders should be
+        above = next(p for p in path.parents if p.exists() or p == p.parent)
+        raise OutputError(f"{path}: {above} is not a folder") from None

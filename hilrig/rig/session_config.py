@@ -18,8 +18,8 @@ from hilrig.drivers.ft.gravity import ToolLoad
 from hilrig.emulator.rig import RigEndpoints
 from hilrig.emulator.scenarios import scenario as make_scenario
 from hilrig.errors import HilrigError
-from hilrig.outputs import check_new_file
 from hilrig.recording import Attachment, validate_subject_id
+from hilrig.rig.config_file import check_recording_path
 from hilrig.rig.kinds import RigKind
 from hilrig.rig.loop import LoopConfig
 from hilrig.rig.trajectory import make_trajectory
@@ -70,7 +70,7 @@ class SessionConfig:
         make_scenario(self.scenario)
         make_trajectory(self.trajectory, np.eye(4), **self.trajectory_options)
         self.loop.controller()
-        check_new_file(self.out, create_folder=True)
+        check_recording_path(self.out)
 
     def as_json(self) -> str:
         """The configuration as JSON, attached to the recording (the virtual trace summarised;

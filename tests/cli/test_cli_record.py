@@ -140,6 +140,7 @@ def record(tmp_path: Path, *args: str, **env: str) -> subprocess.CompletedProces
             "paper-joint",
         ),
         (["--out", "afile/s.mcap"], "afile/s.mcap: afile is not a folder"),
+        (["--out", "afile/new/s.mcap"], "afile/new/s.mcap: afile is not a folder"),
         (["--out", "kept.mcap"], "kept.mcap: already exists; refusing to overwrite it"),
     ],
 )
