@@ -70,3 +70,15 @@ def test_a_recording_in_the_way_is_refused_before_any_work(tmp_path: Path) -> No
     )
     assert list(tmp_path.iterdir()) == [kept]  # no paper folder, no session
     assert kept.read_bytes() == b"a volunteer's session"
+
+
+def test_an_output_folder_under_a_file_is_one_line(tmp_path: Path) -> None:
+    (tmp_path / "afile").write_bytes(b"")
+    result = demo(tmp_path / "afile" / "demo")
+    assert (result.returncode, result.stdout) == (2, "")
+    assert result.stderr == (
+        f"error: {tmp_path / 'afile' / 'demo' / 'paper' / 'paper-table.md'}: "
+        f"{tmp_path / 'afile'} is not a folder; choose another --out, or move the earlier "
+        "outputs away\n"
+    )
+    assert [p.name for p in tmp_path.iterdir()] == ["afile"]

@@ -69,6 +69,18 @@ def test_save_writes_the_session_and_its_replays(tmp_path: Path) -> None:
     } <= entities
 
 
+def test_file_names_are_shown_as_they_are(tmp_path: Path) -> None:
+    session, out = tmp_path / "a[red]b.mcap", tmp_path / "c[bold]d.rrd"
+    session.write_bytes(EXAMPLE.read_bytes())
+    result = hilrig("view", str(session), "--save", str(out))
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.splitlines() == [
+        f"{session}: 1 run(s)",
+        "  ■ recorded (adaptive)",
+        f"wrote {out}",
+    ]
+
+
 def test_long_sessions_say_they_are_decimated(tmp_path: Path) -> None:
     out = tmp_path / "view.rrd"
     result = hilrig("view", str(EXAMPLE), "--max-points", "1000", "--save", str(out))

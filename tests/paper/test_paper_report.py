@@ -1,5 +1,6 @@
 """``hilrig paper``: the files it writes, the tables' contents, and the command itself."""
 
+import os
 from pathlib import Path
 
 import pandas as pd
@@ -124,6 +125,18 @@ def test_paper_refuses_an_existing_output_before_any_work(
         f"error: {tmp_path / 'afile' / 'out' / 'paper-table.md'}: {tmp_path / 'afile'} is not a "
         "folder; "
     )
+
+
+def test_an_unwritable_folder_is_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(os, "access", lambda *args, **kwargs: False)  # as for a user, not root
+    assert run(["paper", "--out", str(tmp_path / "new")]) == 2
+    assert capsys.readouterr().err == (
+        f"error: {tmp_path / 'new' / 'paper-table.md'}: folder {tmp_path} is not writable; "
+        "choose another --out, or move the earlier outputs away\n"
+    )
+    assert not list(tmp_path.iterdir())
 
 
 def test_a_paper_run_that_fails_leaves_nothing(
