@@ -40,8 +40,13 @@ def check_new_file(path: Path, *, overwrite: bool = False, create_folder: bool =
             raise OutputError(f"{path}: {folder} is not a folder")
         if not os.access(folder, os.W_OK | os.X_OK):
             raise OutputError(f"{path}: folder {folder} is not writable")
-    elif not create_folder:
-        raise OutputError(f"{path}: folder {folder} does not exist")
+    else:
+        existing = next(p for p in folder.parents if p.exists())
+        if not existing.is_dir():
+            raise OutputError(f"{path}: {existing} is not a folder")
+        if not create_folder:
+            raise OutputError(f"{path}: folder {folder} does not exist")
+        return
     try:
         mode = path.lstat().st_mode
     except FileNotFoundError:

@@ -129,3 +129,15 @@ def test_any_failure_leaves_the_folder_as_it_was(
     else:
         assert written >= n and not fail
         assert listing(folder) == before | {f"out{i}.bin": b"data" for i in range(n)}
+
+
+def test_a_path_below_a_file_names_the_file(tmp_path: Path) -> None:
+    afile = tmp_path / "afile"
+    afile.write_bytes(b"x")
+    for create in (False, True):
+        with pytest.raises(OutputError) as caught:
+            check_new_file(afile / "new" / "s.mcap", create_folder=create)
+        assert str(caught.value) == f"{afile / 'new' / 's.mcap'}: {afile} is not a folder"
+    with pytest.raises(OutputError) as caught:
+        check_new_file(afile / "s.mcap")
+    assert str(caught.value) == f"{afile / 's.mcap'}: {afile} is not a folder"
