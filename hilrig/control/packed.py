@@ -77,7 +77,8 @@ class Packed:
         P[K.BETA] = resolved.per_axis("beta", axes)
         P[K.DELTA] = resolved.per_axis("delta", axes)
         P[K.BMIN] = found.b_min
-        P[K.GROWTH] = np.exp(found.gamma * dt)
+        with np.errstate(over="ignore"):  # inf for extreme accepted parameters: no guard
+            P[K.GROWTH] = np.exp(found.gamma * dt)
         P[K.TOL] = resolved.per_axis("settle_tol", axes)
         P[K.DT] = dt
         for i in range(axes):
