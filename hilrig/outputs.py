@@ -44,6 +44,8 @@ def check_new_file(path: Path, *, overwrite: bool = False, create_folder: bool =
         existing = next(p for p in folder.parents if p.exists())
         if not existing.is_dir():
             raise OutputError(f"{path}: {existing} is not a folder")
+        if create_folder and not os.access(existing, os.W_OK | os.X_OK):
+            raise OutputError(f"{path}: folder {existing} is not writable")
         if not create_folder:
             raise OutputError(f"{path}: folder {folder} does not exist")
         return
