@@ -4,7 +4,6 @@ import typer
 from typer._click import Context
 from typer.core import TyperGroup, TyperOption
 
-from hilrig import __version__
 from hilrig.cli.errors import SETTINGS
 
 
@@ -34,6 +33,8 @@ app = typer.Typer(
 
 def _print_version(value: bool) -> None:
     if value:
+        from hilrig import __version__
+
         typer.echo(f"hilrig {__version__}")
         raise typer.Exit()
 
