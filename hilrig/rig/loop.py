@@ -213,15 +213,17 @@ class ControlLoop:
             now = time.monotonic_ns()
             self._t0_ns = now
             end_ns = None if duration_s is None else now + round(duration_s * 1e9)
-            nominal = 0  # set by the first frame, which anchors the grid
+            # the loop's start anchors the grid until a frame re-anchors it: a sensor silent
+            # from the start still gets fallback ticks (holding) and the session still ends
+            nominal = now
             window_min = None
             while not stop.is_set():
-                now = self._io.wait(nominal + 2 * period if nominal else now + period)
+                now = self._io.wait(nominal + 2 * period)
                 frames = self._io.pump(now)
                 if frames:  # each frame is one period of the sensor's clock
-                    expected = nominal + period * len(frames) if nominal else now
+                    expected = nominal + period * len(frames)
                     summary.merged_frames += len(frames) - 1
-                elif nominal and now >= nominal + 2 * period:
+                elif now >= nominal + 2 * period:
                     expected = nominal + period  # no frame for a whole period: on the deadline
                     summary.fallback_ticks += 1
                 else:
