@@ -47,17 +47,16 @@ from hilrig.errors import HilrigError
 from hilrig.recording.samples import EventRecord
 from hilrig.rig.device_io import DeviceIO
 from hilrig.rig.events import EventDetector
-from hilrig.rig.records import AXES
 from hilrig.rig.safety import SafetyClamp
 from hilrig.rig.tick import (
     COMMAND_OK,
+    CONTACT_CHANGED,
     FRESH,
     HELD,
     ROBOT_OK,
     SENSOR_OK,
     STOP_NOW,
     CompiledTick,
-    fill_tick_row,
 )
 from hilrig.rig.trajectory import Trajectory
 from hilrig.rig.virtual import VirtualInput
@@ -67,6 +66,7 @@ from hilrig.timing import LatencyHistogram, realtime_python
 COMMAND_FAULT_HOLD_NS = 50_000_000  # after a failed joint-target write, hold this long
 WATCHDOG_TICKS = 100  # how often the session's watchdog (e.g. a living recorder) is asked
 GRID_WINDOW = 1000  # ticks over which the nominal grid follows a slow sensor clock
+STATUS_EVERY = 10  # ticks between updates of the status line's values
 
 
 @dataclass(frozen=True)
@@ -124,9 +124,10 @@ class LoopSummary:
     """End-of-run numbers: tick counts, lateness and latency histograms.
 
     ``io``: reading the three links and storing their rows, before a tick; ``compute``: the tick
-    itself (compiled tick, Modbus request sent, tick row written). ``sensor_to_command``: F/T
-    frame read -> the Modbus request with the targets computed from
-    it sent; ``sensor_to_ack``: the same frame -> that request acknowledged by the robot.
+    itself but for its send (the compiled tick, the events, the tick row written); ``send``: the
+    Modbus request's send call (the OS's socket write). ``sensor_to_command``: F/T frame read ->
+    the Modbus request with the targets computed from it sent; ``sensor_to_ack``: the same frame
+    -> that request acknowledged by the robot.
     """
 
     ticks: int = 0
@@ -137,6 +138,7 @@ class LoopSummary:
     lateness: LatencyHistogram = field(default_factory=LatencyHistogram)
     io: LatencyHistogram = field(default_factory=LatencyHistogram)
     compute: LatencyHistogram = field(default_factory=LatencyHistogram)
+    send: LatencyHistogram = field(default_factory=LatencyHistogram)
     sensor_to_command: LatencyHistogram = field(default_factory=LatencyHistogram)
     sensor_to_ack: LatencyHistogram = field(default_factory=LatencyHistogram)
 
@@ -180,11 +182,13 @@ class ControlLoop:
         self.summary = LoopSummary()
         self._period_ns = config.period_ns
         self._stale_ns = config.stale_after_ticks * config.period_ns
-        self._position = np.zeros(3)
-        self._extra = np.zeros(AXES)
-        self._zero_wrench = np.zeros(6)
-        self._zero_joints = np.zeros(6)
+        self._inputs = inputs = self._kernel.inputs
+        inputs.rotation_d[:] = trajectory.rotation  # the task keeps the start orientation
+        inputs.orientation_d[:] = trajectory.orientation
+        self._q_cmd = self._kernel.q_cmd
         self._timing = np.zeros(7, dtype=np.int64)
+        self._write_row: Callable[[int], None] | None = None  # bound to the ring while running
+        self._send_ns = 0
         self._command_errors = targets.errors
         self._command_hold_until_ns = 0
         self._sent = targets.stats.sent
@@ -192,6 +196,7 @@ class ControlLoop:
         self._playing = False
         self._t0_ns = 0
         self._last_start_ns = 0
+        self._last_nominal_ns = 0
         self.ended_by = ""  # why the watchdog ended the session ("" if it did not)
 
     def _event(self, record: EventRecord) -> None:
@@ -206,6 +211,17 @@ class ControlLoop:
         """Tick until ``duration_s`` has passed, ``stop`` is set or the watchdog (asked every
         WATCHDOG_TICKS ticks) names a reason to end; returns the summary. The robot is left
         holding."""
+        if self._feed is not None:  # bound to the ring's rows while running, released after
+            self._write_row = self._kernel.row_writer(self._feed.tick.rows, self._timing)
+        try:
+            self._ticks(duration_s, stop)
+        finally:
+            self._write_row = None
+        self._targets.write(self._q_cmd, Mode.HOLD)
+        self._update_status(self._last_start_ns, self._last_nominal_ns)
+        return self.summary
+
+    def _ticks(self, duration_s: float | None, stop: threading.Event) -> None:
         period = self._period_ns
         summary = self.summary
         self._events.mark("loop", "session started at the start pose", time.monotonic_ns())
@@ -225,7 +241,6 @@ class ControlLoop:
                     summary.merged_frames += len(frames) - 1
                 elif now >= nominal + 2 * period:
                     expected = nominal + period  # no frame for a whole period: on the deadline
-                    summary.fallback_ticks += 1
                 else:
                     continue
                 nominal = min(expected, now)  # an early frame re-anchors the grid
@@ -236,6 +251,8 @@ class ControlLoop:
                     window_min = None
                 if end_ns is not None and nominal >= end_ns:
                     break
+                if not frames:
+                    summary.fallback_ticks += 1
                 ticking = time.monotonic_ns()
                 self.tick(now, nominal)
                 if self._watchdog is not None and summary.ticks % WATCHDOG_TICKS == 0:
@@ -246,19 +263,19 @@ class ControlLoop:
                         break
                 done = time.monotonic_ns()
                 summary.io.add(ticking - now)
-                summary.compute.add(done - ticking)
+                summary.compute.add(done - ticking - self._send_ns)
+                summary.send.add(self._send_ns)
                 summary.lateness.add(lateness)
                 if done - nominal > period:
                     summary.missed_deadlines += 1
                 summary.missed_deadlines += len(frames) - 1 if frames else 0
-        self._targets.write(self._kernel.q_cmd, Mode.HOLD)
-        return summary
 
     def tick(self, start_ns: int, nominal_ns: int) -> None:
         """One tick on the newest samples, started at ``start_ns`` for ``nominal_ns``."""
         summary = self.summary
         events = self._events
         kernel = self._kernel
+        inputs = self._inputs
         sample = self._sensor.latest()
         robot = self._robot.latest()
         sensor_ok = sample is not None and start_ns - sample.t_ns <= self._stale_ns
@@ -273,22 +290,26 @@ class ControlLoop:
         flags = (SENSOR_OK if sensor_ok else 0) | (ROBOT_OK if robot_ok else 0)
         if start_ns >= self._command_hold_until_ns:
             flags |= COMMAND_OK
+        # the kernel reads the measured inputs only when both are fresh (so present)
+        if sample is not None:
+            inputs.raw_wrench[:] = sample.wrench_in_sensor
+        if robot is not None:
+            inputs.q_measured[:] = robot.state.q_rad
+            inputs.torque_measured[:] = robot.state.torque_nm
         # the task is sampled at the tick's nominal time, not its jittery start, so the
         # commanded path is as smooth as the controller's fixed dt assumes
         t_s = (nominal_ns - self._t0_ns) / 1e9
-        self._trajectory.desired(t_s, self._position)
+        self._trajectory.desired(t_s, inputs.position_d)
         if self._virtual is not None:
             self._play(t_s, nominal_ns)
-        result = kernel.run(
-            flags,
-            self._zero_wrench if sample is None else np.asarray(sample.wrench_in_sensor),
-            self._zero_joints if robot is None else np.asarray(robot.state.q_rad),
-            self._zero_joints if robot is None else np.asarray(robot.state.torque_nm),
-            self._extra,
-            self._position,
-            self._trajectory.rotation,
-        )
-        events.contact(self._controller.contact, start_ns)
+        result = kernel.step(flags)
+        stopped = kernel.stopped
+        source_ns = sample.t_ns if (result & FRESH) and not (result & HELD) and sample else 0
+        sending = time.monotonic_ns()
+        targets.write(self._q_cmd, Mode.STOP if stopped else Mode.TRACK, source_ns=source_ns)
+        self._send_ns = time.monotonic_ns() - sending
+        if result & CONTACT_CHANGED:
+            events.contact(self._controller.contact, start_ns)
         if result & STOP_NOW:
             force = kernel.force
             events.fault(
@@ -298,9 +319,6 @@ class ControlLoop:
                 value=math.hypot(force[0], force[1], force[2]),
             )
         events.clamp(result & 0xFF, start_ns)
-        stopped = kernel.stopped
-        source_ns = sample.t_ns if (result & FRESH) and not (result & HELD) and sample else 0
-        targets.write(kernel.q_cmd, Mode.STOP if stopped else Mode.TRACK, source_ns=source_ns)
         self._track_latency()
         if result & HELD:
             summary.hold_ticks += 1
@@ -314,8 +332,9 @@ class ControlLoop:
     def _play(self, t_s: float, t_ns: int) -> None:
         """This tick's row of the virtual collision into the extra input; mark start and end."""
         assert self._virtual is not None
-        self._extra[:] = 0.0
-        playing = self._virtual.add_to(t_s, self._extra)
+        extra = self._inputs.extra
+        extra[:] = 0.0
+        playing = self._virtual.add_to(t_s, extra)
         if playing != self._playing:
             self._playing = playing
             what = "started" if playing else "ended"
@@ -338,7 +357,7 @@ class ControlLoop:
         summary = self.summary
         summary.ticks += 1
         feed = self._feed
-        if feed is not None:
+        if feed is not None and self._write_row is not None:
             ring = feed.tick
             slot = ring.reserve_index()
             if slot >= 0:
@@ -350,25 +369,20 @@ class ControlLoop:
                 timing[4] = start_ns - nominal_ns
                 timing[5] = summary.missed_deadlines
                 timing[6] = feed.drops
-                k = self._kernel.arrays
-                fill_tick_row(
-                    ring.rows,
-                    slot,
-                    self._kernel.work,
-                    k.out,
-                    k.contact,
-                    k.mass,
-                    self._position,
-                    self._trajectory.orientation,
-                    timing,
-                )
+                self._write_row(slot)
                 ring.commit()
         self._last_start_ns = start_ns
+        self._last_nominal_ns = nominal_ns
+        if summary.ticks % STATUS_EVERY == 0:
+            self._update_status(start_ns, nominal_ns)
+
+    def _update_status(self, start_ns: int, nominal_ns: int) -> None:
+        """The status line's values (read by another thread: plain values)."""
         status = self.status
-        status.ticks = summary.ticks
+        status.ticks = self.summary.ticks
         status.lateness_us = (start_ns - nominal_ns) / 1000
         force, offset = self._kernel.force, self._controller.offset
         status.force_n = math.hypot(force[0], force[1], force[2])
         status.offset_mm = 1000 * math.hypot(offset[0], offset[1], offset[2])
-        status.drops = 0 if feed is None else feed.drops
+        status.drops = 0 if self._feed is None else self._feed.drops
         status.stopped = self._kernel.stopped

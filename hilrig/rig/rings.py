@@ -12,11 +12,13 @@ count (written by the producer only), then on another line the read index (writt
 consumer only) - followed by ``capacity`` rows. Indices count rows since creation and never
 wrap; row ``i`` lives in slot ``i % capacity``.
 
-Lifetime: the creator (:meth:`Ring.create`) unlinks the block (:meth:`Ring.unlink`) once both
-sides are done; every process, creator included, calls :meth:`Ring.close` to unmap it. Attach
-only from processes started by :mod:`multiprocessing` (spawn, forkserver or fork): they share
-the creator's resource tracker, which also unlinks the block if the creator dies without doing
-so. A process with its own tracker (Python < 3.13) would unlink the block when it exits.
+The creator is the producer: it touches every page of the block when creating it, so that
+writing a row never faults. Lifetime: the creator (:meth:`Ring.create`) unlinks the block
+(:meth:`Ring.unlink`) once both sides are done; every process, creator included, calls
+:meth:`Ring.close` to unmap it. Attach only from processes started by :mod:`multiprocessing`
+(spawn, forkserver or fork): they share the creator's resource tracker, which also unlinks the
+block if the creator dies without doing so. A process with its own tracker (Python < 3.13)
+would unlink the block when it exits.
 """
 
 from __future__ import annotations
@@ -110,7 +112,11 @@ class Ring:
         words[_CAPACITY_AT] = spec.capacity
         words[_MAGIC_AT] = _MAGIC
         words.release()
-        return cls(spec, shm, owner=True)
+        ring = cls(spec, shm, owner=True)
+        # touch every page now: the producer's first pass would otherwise take a page fault
+        # every few rows (tens of us each here), on the real-time thread
+        ring._data.view(np.uint8)[:] = 0
+        return ring
 
     @classmethod
     def attach(cls, spec: RingSpec) -> Ring:

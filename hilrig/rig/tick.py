@@ -17,7 +17,8 @@ stale input, a command fault or a protective stop makes the tick a hold (brake s
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
@@ -37,29 +38,37 @@ from hilrig.rig.clamp_kernels import HOLDING, NON_FINITE, candidate, exceeds, fi
 from hilrig.rig.records import AXES, JOINTS, TICK_DTYPE
 from hilrig.rig.rings import Ring, RingSpec
 from hilrig.rig.safety import SafetyClamp, SafetyConfig
+from hilrig.rig.tick_row import (
+    W_FORCE,
+    W_FRESH,
+    W_GRAVITY_S,
+    W_MOMENT,
+    W_Q_CMD,
+    W_Q_IK,
+    W_TARGET,
+    W_WRENCH,
+    WORK_SIZE,
+    fill_tick_row,
+)
 from hilrig.rig.trajectory import make_trajectory
 from hilrig.robot import RobotModel
 from hilrig.robot.kinematics import CompiledChain, fk_into, ik_into, ik_work
+from hilrig.timing import bound_kernel
 
 # Bits of the kernel's input flags and result (besides the clamp's flags in the low byte).
 SENSOR_OK, ROBOT_OK, COMMAND_OK = 1, 2, 4
-FRESH, HELD, STOP_NOW = 1 << 8, 1 << 9, 1 << 10
-# Entries of the int64 counters array.
-TICK, STOPPED, HOLD_TICKS, IK_UNCONVERGED = range(4)
+FRESH, HELD, STOP_NOW, CONTACT_CHANGED = 1 << 8, 1 << 9, 1 << 10, 1 << 11
+# Entries of the int64 counters array: counts, and the contact codes of the last tick's axis
+# groups (end effector: axis 0, joints: axis 3; hilrig.rig.events.GROUPS).
+TICK, STOPPED, HOLD_TICKS, IK_UNCONVERGED, CONTACT_EE, CONTACT_JOINTS = range(6)
 # Entries of the float64 options array.
 FORCE_MAX, TORQUE_MAX, IK_TOL_POS, IK_TOL_ROT, IK_DAMPING, IK_MAX_STEP, DT = range(7)
 IK_MAX_ITERATIONS = 2
 IK_TOLERANCE = 1e-8  # m and rad: warm-started, one Gauss-Newton step a tick meets it
 
-# Offsets into the ``work`` vector (float64).
-W_FRESH, W_FORCE, W_WRENCH, W_MOMENT, W_GRAVITY_S = 0, 9, 18, 24, 27
-W_Q_IK, W_TARGET, W_Q_CMD = 30, 36, 42
-WORK_SIZE = 48
-
 
 @njit(cache=True)
 def tick_kernel(
-    flags_in: int,
     raw_wrench: NDArray[np.float64],
     q_measured: NDArray[np.float64],
     torque_measured: NDArray[np.float64],
@@ -85,8 +94,10 @@ def tick_kernel(
     ik_work: NDArray[np.float64],
     poses: NDArray[np.float64],
     counters: NDArray[np.int64],
+    flags_in: int,
 ) -> int:
-    """One tick; returns the clamp's flags | FRESH | HELD | STOP_NOW (see module constants).
+    """One tick; returns the clamp's flags | FRESH | HELD | STOP_NOW | CONTACT_CHANGED (see the
+    module constants).
 
     ``compensation`` (6, 5): per wrench axis the bias, then the tool's wrench map (6, 3) in
     columns 1-3, and in column 4 rows 0-2 gravity in the base frame (m/s^2). ``work`` (48,)
@@ -180,54 +191,28 @@ def tick_kernel(
             if braked:
                 flags = braked
         result |= flags
+    if contact[0, 0] != counters[CONTACT_EE] or contact[0, 3] != counters[CONTACT_JOINTS]:
+        counters[CONTACT_EE] = contact[0, 0]
+        counters[CONTACT_JOINTS] = contact[0, 3]
+        result |= CONTACT_CHANGED
     counters[TICK] += 1
     return result
 
 
-@njit(cache=True)
-def fill_tick_row(
-    rows: NDArray[np.void],
-    slot: int,
-    work: NDArray[np.float64],
-    results: NDArray[np.float64],
-    contact: NDArray[np.int8],
-    mass: NDArray[np.float64],
-    position_d: NDArray[np.float64],
-    orientation_d: NDArray[np.float64],
-    timing: NDArray[np.int64],
-) -> None:
-    """Write the tick's row (TICK_DTYPE) into ``rows[slot]``.
+@dataclass
+class TickInputs:
+    """The per-tick inputs the loop writes in place before each :meth:`CompiledTick.step`: the
+    raw wrist wrench (6,) in the sensor frame, measured joints (6,) rad and torques (6,) N*m, an
+    extra input (9,) added to the controller's (a virtual collision), and the desired TCP pose:
+    position (3,) m, rotation (3, 3) and orientation (4,) quaternion (w, x, y, z), base frame."""
 
-    ``results`` is the controller's ``out`` (offset, rate, damping, stiffness rows of one tick);
-    ``timing`` (7,): t_ns, tick, period_ns, compute_ns, lateness_ns, overruns, queue_drops.
-    """
-    row = rows[slot]
-    row.t_ns = timing[0]
-    row.tick = timing[1]
-    row.period_ns = timing[2]
-    row.compute_ns = timing[3]
-    row.lateness_ns = timing[4]
-    row.overruns = timing[5]
-    row.queue_drops = timing[6]
-    for i in range(AXES):
-        f = work[W_FORCE + i]
-        b = results[2, 0, i]
-        k = results[3, 0, i]
-        row.force[i] = f
-        row.offset[i] = results[0, 0, i]
-        row.offset_rate[i] = results[1, 0, i]
-        row.damping[i] = b
-        row.stiffness[i] = k
-        row.chi[i] = math.tanh(f * f)
-        row.zeta[i] = b / math.sqrt(mass[i] * k) * 0.5
-        row.contact[i] = contact[0, i]
-    for r in range(3):
-        row.moment[r] = work[W_MOMENT + r]
-        row.desired_position[r] = position_d[r]
-    for r in range(4):
-        row.desired_orientation[r] = orientation_d[r]
-    for j in range(JOINTS):
-        row.commanded_q[j] = work[W_Q_CMD + j]
+    raw_wrench: NDArray[np.float64] = field(default_factory=lambda: np.zeros(6))
+    q_measured: NDArray[np.float64] = field(default_factory=lambda: np.zeros(JOINTS))
+    torque_measured: NDArray[np.float64] = field(default_factory=lambda: np.zeros(JOINTS))
+    extra: NDArray[np.float64] = field(default_factory=lambda: np.zeros(AXES))
+    position_d: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
+    rotation_d: NDArray[np.float64] = field(default_factory=lambda: np.eye(3))
+    orientation_d: NDArray[np.float64] = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))
 
 
 @dataclass
@@ -235,7 +220,9 @@ class CompiledTick:
     """The kernel's arrays for one session, built from the same objects the reference path uses.
 
     The controller, clamp and compensator keep their own state arrays, which the kernel updates
-    in place; ``q_ik`` starts at the measured start pose.
+    in place; ``q_ik`` starts at the measured start pose. The loop fills :attr:`inputs` and calls
+    :meth:`step` (the kernel bound to these arrays: no per-call dispatch, see
+    :func:`hilrig.timing.bound_kernel`); :meth:`run` copies given inputs first.
     """
 
     arrays: KernelArrays
@@ -248,6 +235,41 @@ class CompiledTick:
     ik_work: NDArray[np.float64]
     poses: NDArray[np.float64]
     counters: NDArray[np.int64]
+    inputs: TickInputs = field(default_factory=TickInputs)
+    step: Callable[[int], int] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        i, k, chain = self.inputs, self.arrays, self.chain
+        limits, box, state = self.clamp_arrays
+        self.step = bound_kernel(
+            tick_kernel,
+            i.raw_wrench,
+            i.q_measured,
+            i.torque_measured,
+            i.extra,
+            i.position_d,
+            i.rotation_d,
+            self.compensation,
+            chain.frames,
+            chain.axes,
+            chain.limits,
+            k.P,
+            k.cfg,
+            k.S,
+            k.G,
+            k.out,
+            k.contact,
+            k.offset,
+            limits,
+            box,
+            state,
+            self.options,
+            self.work,
+            self.ik_work,
+            self.poses,
+            self.counters,
+            last=(0,),
+        )
 
     @classmethod
     def build(
@@ -275,7 +297,7 @@ class CompiledTick:
         work[W_Q_IK : W_Q_IK + JOINTS] = q0_rad
         work[W_Q_CMD : W_Q_CMD + JOINTS] = q0_rad
         poses = np.tile(np.eye(4), (3, 1, 1))
-        counters = np.zeros(4, dtype=np.int64)
+        counters = np.zeros(6, dtype=np.int64)
         chain = CompiledChain.from_model(model)
         arrays = controller.kernel_arrays()
         return cls(
@@ -315,39 +337,34 @@ class CompiledTick:
         position_d: NDArray[np.float64],
         rotation_d: NDArray[np.float64],
     ) -> int:
-        """One tick (see :func:`tick_kernel`)."""
-        k = self.arrays
-        chain = self.chain
-        limits, box, state = self.clamp_arrays
-        result: int = tick_kernel(
-            flags_in,
-            raw_wrench,
-            q_measured,
-            torque_measured,
-            extra_input,
-            position_d,
-            rotation_d,
-            self.compensation,
-            chain.frames,
-            chain.axes,
-            chain.limits,
-            k.P,
-            k.cfg,
-            k.S,
-            k.G,
+        """One tick on these inputs (copied into :attr:`inputs`; see :func:`tick_kernel`)."""
+        i = self.inputs
+        i.raw_wrench[:] = raw_wrench
+        i.q_measured[:] = q_measured
+        i.torque_measured[:] = torque_measured
+        i.extra[:] = extra_input
+        i.position_d[:] = position_d
+        i.rotation_d[:] = rotation_d
+        return self.step(flags_in)
+
+    def row_writer(
+        self, rows: NDArray[np.void], timing: NDArray[np.int64]
+    ) -> Callable[[int], None]:
+        """Writes this tick's row into ``rows[slot]`` when called with ``slot`` (bound
+        :func:`fill_tick_row`); ``timing`` (7,) int64 as that function takes it."""
+        k, i = self.arrays, self.inputs
+        return bound_kernel(
+            fill_tick_row,
+            rows,
+            self.work,
             k.out,
             k.contact,
-            k.offset,
-            limits,
-            box,
-            state,
-            self.options,
-            self.work,
-            self.ik_work,
-            self.poses,
-            self.counters,
+            k.mass,
+            i.position_d,
+            i.orientation_d,
+            timing,
+            last=(0,),
         )
-        return result
 
 
 def warm_up() -> None:
@@ -367,12 +384,12 @@ def warm_up() -> None:
     tick.run(flags, zeros6, q0, zeros6, np.zeros(AXES), position, trajectory.rotation)
     ring = Ring.create(RingSpec.unique("warm", TICK_DTYPE, 2))
     try:
-        k = tick.arrays
-        fill_tick_row(ring.rows, 0, tick.work, k.out, k.contact, k.mass, position,
-                      trajectory.orientation, np.zeros(7, dtype=np.int64))  # fmt: skip
+        write_row = tick.row_writer(ring.rows, np.zeros(7, dtype=np.int64))
+        write_row(0)
+        del write_row  # it holds the ring's rows, which must be released before unmapping
     finally:
         ring.unlink()
         ring.close()
 
 
-__all__ = ["CompiledTick", "fill_tick_row", "tick_kernel", "warm_up"]
+__all__ = ["CompiledTick", "TickInputs", "fill_tick_row", "tick_kernel", "warm_up"]

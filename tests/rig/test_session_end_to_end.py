@@ -236,3 +236,39 @@ def test_a_session_that_fails_once_recording_keeps_its_file_and_says_where(
     assert caught.value.__notes__ == [f"what was recorded until then is in {out}"]
     assert inspect(out).complete  # closed cleanly, with the start-up's samples
     assert len(load(out, topics=["/joint_states"])["/joint_states"]) > 0
+
+
+def test_a_wrist_sensor_silent_from_the_start_holds_and_the_session_still_ends(
+    tmp_path: Path,
+) -> None:
+    # the sensor's link is cut once the file is open, before the first tick (what was buffered
+    # goes with it): no frame triggers a tick, so every tick is a fallback tick on the deadline
+    rigs: list[RigProcess] = []
+    results: list[SessionResult] = []
+    stop = threading.Event()
+
+    def silence(_: RecorderProcess) -> None:
+        rigs[0].fault("ft.drop_link", 30.0)
+        time.sleep(0.1)  # applied at the rig's next slot
+
+    def record() -> None:
+        config = SessionConfig(out=tmp_path / "silent.mcap", subject_id="S001", duration_s=1.0)
+        results.append(
+            record_session(config, stop=stop, rig_ready=rigs.append, recorder_ready=silence)
+        )
+
+    session = threading.Thread(target=record, daemon=True)
+    session.start()
+    session.join(120.0)  # it used to wait for a first frame forever
+    stop.set()
+    session.join(30.0)
+    assert results, "the session did not end on its own"
+    summary = results[0].summary
+    assert summary.ticks > 0
+    assert summary.fallback_ticks == summary.ticks  # not one tick was triggered by a frame
+    assert summary.ticks <= 1000  # it ended at its duration: no tick beyond 1 s of the grid
+    assert summary.hold_ticks >= summary.ticks - 5  # stale after 5 ticks (the tare's samples)
+    stale = [e for e in results[0].events if e.source == "wrist F/T sensor"]
+    assert stale and stale[0].detail.startswith("stale or lost")
+    ticks = load(results[0].path, topics=["/diagnostics/loop"])["/diagnostics/loop"]
+    assert len(ticks) == summary.ticks

@@ -26,13 +26,13 @@ from hilrig.rig.records import TICK_DTYPE
 from hilrig.rig.safety import SafetyClamp, SafetyConfig
 from hilrig.rig.tick import (
     COMMAND_OK,
+    CONTACT_CHANGED,
     FRESH,
     HELD,
     ROBOT_OK,
     SENSOR_OK,
     STOP_NOW,
     CompiledTick,
-    fill_tick_row,
 )
 from hilrig.rig.trajectory import make_trajectory
 from hilrig.robot import RobotModel
@@ -57,6 +57,7 @@ class Reference:
         self.q_cmd = self.q0.copy()
         self.force = np.zeros(9)
         self.stopped = False
+        self.contact = (0, 0)  # the axis groups' contact codes (end effector, joints): free
 
     def tick(
         self, flags_in: int, raw: Vec, q: Vec, tau: Vec, extra: Vec, position: Vec, rotation: Vec
@@ -86,7 +87,10 @@ class Reference:
             )
             self.q_ik[:] = ik.q_rad
             flags = self.clamp.clamp(self.q_ik + offsets[3:], self.q_cmd)
-        return result | flags | (STOP_NOW if stop_now else 0)
+        contact = (int(self.controller.contact[0]), int(self.controller.contact[3]))
+        changed = CONTACT_CHANGED if contact != self.contact else 0
+        self.contact = contact
+        return result | flags | (STOP_NOW if stop_now else 0) | changed
 
 
 def pair(q0: Vec, compensator: GravityCompensator) -> tuple[Reference, CompiledTick]:
@@ -125,16 +129,19 @@ def test_the_compiled_tick_reproduces_the_reference_on_a_recorded_session() -> N
     trajectory = make_trajectory("circle", start)
     position, extra = np.zeros(3), np.zeros(9)
     flags_in = SENSOR_OK | ROBOT_OK | COMMAND_OK
-    ticks, largest_m = 0, 0.0
+    ticks, largest_m, changes = 0, 0.0, 0
     for n in range(100, len(raw)):
         j = max(int(joint_of_ft[n]) - 1, 0)
         trajectory.desired(n * 2e-3, position)
         args = (flags_in, raw[n], q_rec[j], tau_rec[j], extra, position, trajectory.rotation)
-        agree(reference, compiled, reference.tick(*args), compiled.run(*args))
+        flags = compiled.run(*args)
+        agree(reference, compiled, reference.tick(*args), flags)
         ticks += 1
+        changes += bool(flags & CONTACT_CHANGED)
         largest_m = max(largest_m, float(np.abs(compiled.arrays.offset[:3]).max()))
     assert ticks == len(raw) - 100
     assert largest_m > 5e-3  # the recorded collision made the arm yield
+    assert changes >= 2  # contact, then recovering (each tick that changed it is flagged)
 
 
 finite = st.floats(-200, 200)
@@ -222,8 +229,8 @@ def test_the_tick_row_holds_what_the_tick_computed() -> None:
     k = compiled.arrays
     timing = np.arange(1, 8, dtype=np.int64)
     quaternion = np.array([0.0, 0.0, 0.0, 1.0])
-    fill_tick_row(rows, 1, compiled.work, k.out, k.contact, k.mass, pose[:3, 3], quaternion,
-                  timing)  # fmt: skip
+    compiled.inputs.orientation_d[:] = quaternion
+    compiled.row_writer(rows, timing)(1)  # as the loop writes it: bound to the ring's rows
     row = rows[1]
     assert rows[0]["t_ns"] == 0 and rows[2]["t_ns"] == 0
     assert [int(row[f]) for f in ("t_ns", "tick", "period_ns", "compute_ns")] == [1, 2, 3, 4]
@@ -236,6 +243,8 @@ def test_the_tick_row_holds_what_the_tick_computed() -> None:
     r = pose[:3, :3]
     np.testing.assert_allclose(row["force"][:3], r @ (wrench[:3]), atol=1e-12)
     np.testing.assert_allclose(row["moment"], r @ wrench[3:], atol=1e-12)
+    np.testing.assert_array_equal(row["desired_position"], pose[:3, 3])
+    np.testing.assert_array_equal(row["desired_orientation"], quaternion)
 
 
 @pytest.mark.parametrize("missing", [SENSOR_OK, ROBOT_OK, COMMAND_OK])

@@ -11,6 +11,8 @@ the frames byte for byte against pymodbus's ``FramerRTU.buildFrame`` for any tar
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
@@ -19,14 +21,16 @@ from pymodbus.pdu import DecodePDU
 from pymodbus.pdu.register_message import WriteMultipleRegistersRequest
 
 from hilrig.drivers.joint_targets.wire import JOINTS, JointTargets, Mode, RegisterMap
+from hilrig.timing import bound_kernel
 
 _DATA_AT = 7  # device id, function, address (2), count (2), byte count (1)
 _CRC_TABLE = np.array(FramerRTU.crc16_table, dtype=np.uint16)
 
 
 class RequestFrame:
-    """One reusable request of ``register_map``: ``fill(q_rad, sequence, mode)`` then send
-    :attr:`frame` (a uint8 array, a buffer ``os.write`` takes)."""
+    """One reusable request of ``register_map``: ``fill(q_rad, sequence, mode)`` (or write
+    :attr:`q_rad` in place and ``fill_from_q(sequence, mode)``), then send :attr:`frame` (a
+    uint8 array, a buffer ``os.write`` takes)."""
 
     def __init__(self, register_map: RegisterMap) -> None:
         self._map = register_map
@@ -36,21 +40,32 @@ class RequestFrame:
         self._targets_at = _DATA_AT + 2 * (register_map.targets[0] - start)
         self._sequence_at = _DATA_AT + 2 * (register_map.sequence[0] - start)
         self._mode_at = _DATA_AT + 2 * (register_map.mode[0] - start)
+        self.q_rad = np.zeros(JOINTS)
+        self.incoming = np.zeros(JOINTS)
+        self.stage: Callable[[], bool] = bound_kernel(
+            copy_if_finite, self.incoming, self.q_rad, last=()
+        )
+        """``stage()``: copies :attr:`incoming` to :attr:`q_rad` if every target is finite; whether
+        it did (no per-call dispatch)."""
         self._f32 = np.zeros(JOINTS, dtype=np.float32)
-
-    def fill(self, q_rad: NDArray[np.float64], sequence: int, mode: Mode) -> None:
-        """Write targets (6,), rad (finite: the caller checks), counter and mode, and the CRC."""
-        fill_request(
+        self.fill_from_q: Callable[[int, int], None] = bound_kernel(
+            fill_request,
             self.frame,
-            q_rad,
-            sequence,
-            int(mode),
+            self.q_rad,
             self._targets_at,
             self._sequence_at,
             self._mode_at,
             _CRC_TABLE,
             self._f32,
+            last=(0, 0),
         )
+        """``fill_from_q(sequence, mode)``: the frame of :attr:`q_rad` (finite: the caller
+        checks), the counter and the mode (an int), with its CRC (no per-call dispatch)."""
+
+    def fill(self, q_rad: NDArray[np.float64], sequence: int, mode: Mode) -> None:
+        """Write targets (6,), rad (finite: the caller checks), counter and mode, and the CRC."""
+        self.q_rad[:] = q_rad
+        self.fill_from_q(sequence, int(mode))
 
 
 def rtu_frame_size(decoder: DecodePDU, buffer: bytes | bytearray) -> int:
@@ -79,16 +94,26 @@ def _pymodbus_frame(register_map: RegisterMap, targets: JointTargets) -> bytes:
 
 
 @njit(cache=True)
+def copy_if_finite(source: NDArray[np.float64], target: NDArray[np.float64]) -> bool:
+    """Copy ``source`` into ``target`` if every value is finite; whether it did."""
+    for j in range(source.shape[0]):
+        if not np.isfinite(source[j]):
+            return False
+    target[:] = source
+    return True
+
+
+@njit(cache=True)
 def fill_request(
     frame: NDArray[np.uint8],
     q_rad: NDArray[np.float64],
-    sequence: int,
-    mode: int,
     targets_at: int,
     sequence_at: int,
     mode_at: int,
     crc_table: NDArray[np.uint16],
     f32: NDArray[np.float32],
+    sequence: int,
+    mode: int,
 ) -> None:
     """Registers big-endian (float32 targets as two words, high first), then the CRC-16/MODBUS
     of everything before it, low byte first, as pymodbus writes it."""

@@ -24,10 +24,10 @@ import socket
 import time
 from collections import deque
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
-import numpy as np
 import serial
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import ModbusException
 from pymodbus.framer import FramerRTU
@@ -36,7 +36,7 @@ from pymodbus.pdu.register_message import WriteMultipleRegistersResponse
 
 from hilrig.drivers.base import LinkStatus, Writer, error_text, wait_readable
 from hilrig.drivers.joint_targets.frame import RequestFrame, rtu_frame_size
-from hilrig.drivers.joint_targets.wire import JOINTS, Mode, RegisterMap
+from hilrig.drivers.joint_targets.wire import Mode, RegisterMap
 from hilrig.drivers.reconnect import Backoff, start_tcp_connect, tcp_connected
 from hilrig.errors import LinkError, ModbusExceptionError, ParameterError, ProtocolError
 
@@ -78,12 +78,11 @@ class WriterStats:
     last_source_ns: int = 0  # the source time given with the last acknowledged write (or 0)
 
 
-@dataclass(frozen=True, slots=True)
-class _Request:
+class _Request(NamedTuple):
     sequence: int
     submitted_ns: int
     source_ns: int
-    sent_ns: int = 0
+    sent_ns: int
 
 
 class JointTargetsWriter(Writer[ArrayLike]):
@@ -108,7 +107,6 @@ class JointTargetsWriter(Writer[ArrayLike]):
         self._framer = FramerRTU(DecodePDU(is_server=False))
         self._request = RequestFrame(self._map)
         self._request_bytes = self._request.frame.data  # a view: fill() shows through
-        self._request.fill(np.zeros(JOINTS), 0, Mode.HOLD)  # load the compiled kernel now
         self._ack = FramerRTU(DecodePDU(is_server=True)).buildFrame(
             WriteMultipleRegistersResponse(
                 address=self._map.start, count=self._map.count, dev_id=self._map.device_id
@@ -124,7 +122,8 @@ class JointTargetsWriter(Writer[ArrayLike]):
         self._linked_before = False
         self._rx = bytearray()
         self._in_flight: deque[_Request] = deque()
-        self._pending: tuple[NDArray[np.float64], Mode, _Request] | None = None
+        # the pending targets are in self._request.q_rad: (mode, submitted_ns, source_ns)
+        self._pending: tuple[int, int, int] | None = None
         self._sequence = 0
         self.stats = WriterStats()
         self.errors = 0
@@ -188,15 +187,17 @@ class JointTargetsWriter(Writer[ArrayLike]):
         ``stats.last_source_ns`` once acknowledged. Non-finite targets are refused (counted in
         ``stats.refused``), never sent.
         """
-        q = np.array(value, dtype=np.float64).reshape(JOINTS)  # a copy: the caller may reuse
-        if not np.isfinite(q).all():
-            self.stats.refused += 1
+        request = self._request
+        request.incoming[:] = value  # a copy: the caller may reuse its array
+        stats = self.stats
+        if not request.stage():  # the targets become the pending ones only if all finite
+            stats.refused += 1
             return
         now_ns = time.monotonic_ns()
-        self.stats.submitted += 1
+        stats.submitted += 1
         if self._pending is not None:
-            self.stats.superseded += 1
-        self._pending = (q, mode, _Request(0, now_ns, source_ns))
+            stats.superseded += 1
+        self._pending = (int(mode), now_ns, source_ns)
         try:
             self._send_pending()
         except Exception as err:  # whatever happens (even a bug), the caller's loop carries on
@@ -239,20 +240,20 @@ class JointTargetsWriter(Writer[ArrayLike]):
         pending = self._pending
         if pending is None or self._fd < 0 or len(self._in_flight) >= self.max_in_flight:
             return
-        q, mode, request = pending
+        mode, submitted_ns, source_ns = pending
         sequence = (self._sequence + 1) & 0xFFFF
-        self._request.fill(q, sequence, mode)
+        self._request.fill_from_q(sequence, mode)
         if os.write(self._fd, self._request_bytes) != self._request_bytes.nbytes:
             raise LinkError(f"joint targets {self.endpoint}: send buffer full")
         sent_ns = time.monotonic_ns()
         self._sequence = sequence
         self._pending = None
-        self._in_flight.append(_Request(sequence, request.submitted_ns, request.source_ns, sent_ns))
+        self._in_flight.append(_Request(sequence, submitted_ns, source_ns, sent_ns))
         stats = self.stats
         stats.sent += 1
         stats.in_flight = len(self._in_flight)
         stats.last_sent_ns = sent_ns
-        stats.last_sent_source_ns = request.source_ns
+        stats.last_sent_source_ns = source_ns
 
     def _take_replies(self, now_ns: int) -> None:
         try:

@@ -1,0 +1,66 @@
+"""The tick's row: the compiled tick's results written into the recorder ring's slot in place.
+
+The row's layout is ``TICK_DTYPE`` (``hilrig/rig/records.py``, from the recording schema); the
+loop calls this through :meth:`hilrig.rig.tick.CompiledTick.row_writer` (bound: no dispatch).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from hilrig.rig.records import AXES, JOINTS
+
+# The compiled tick's ``work`` vector (float64): offsets of its parts.
+W_FRESH, W_FORCE, W_WRENCH, W_MOMENT, W_GRAVITY_S = 0, 9, 18, 24, 27
+W_Q_IK, W_TARGET, W_Q_CMD = 30, 36, 42
+WORK_SIZE = 48
+
+
+@njit(cache=True)
+def fill_tick_row(
+    rows: NDArray[np.void],
+    work: NDArray[np.float64],
+    results: NDArray[np.float64],
+    contact: NDArray[np.int8],
+    mass: NDArray[np.float64],
+    position_d: NDArray[np.float64],
+    orientation_d: NDArray[np.float64],
+    timing: NDArray[np.int64],
+    slot: int,
+) -> None:
+    """Write the tick's row (TICK_DTYPE) into ``rows[slot]``.
+
+    ``results`` is the controller's ``out`` (offset, rate, damping, stiffness rows of one tick);
+    ``timing`` (7,): t_ns, tick, period_ns, compute_ns, lateness_ns, overruns, queue_drops.
+    """
+    row = rows[slot]
+    row.t_ns = timing[0]
+    row.tick = timing[1]
+    row.period_ns = timing[2]
+    row.compute_ns = timing[3]
+    row.lateness_ns = timing[4]
+    row.overruns = timing[5]
+    row.queue_drops = timing[6]
+    for i in range(AXES):
+        f = work[W_FORCE + i]
+        b = results[2, 0, i]
+        k = results[3, 0, i]
+        row.force[i] = f
+        row.offset[i] = results[0, 0, i]
+        row.offset_rate[i] = results[1, 0, i]
+        row.damping[i] = b
+        row.stiffness[i] = k
+        row.chi[i] = math.tanh(f * f)
+        row.zeta[i] = b / math.sqrt(mass[i] * k) * 0.5
+        row.contact[i] = contact[0, i]
+    for r in range(3):
+        row.moment[r] = work[W_MOMENT + r]
+        row.desired_position[r] = position_d[r]
+    for r in range(4):
+        row.desired_orientation[r] = orientation_d[r]
+    for j in range(JOINTS):
+        row.commanded_q[j] = work[W_Q_CMD + j]
