@@ -72,6 +72,42 @@ def info_command(
     _exit_if_damaged(described.problems)
 
 
+def _print_loop(console: Console, info: FileInfo) -> None:
+    """The loop's end figures (the ``outcome`` record), else its last counters in the file."""
+    outcome = info.outcome
+    if outcome is not None:
+        ended = f"; ended early: {outcome.ended_by}" if outcome.ended_by else ""
+        console.print(
+            f"loop: {outcome.ticks:,} ticks, {outcome.hold_ticks:,} hold ticks,"
+            f" {outcome.fallback_ticks:,} fallback ticks, {outcome.missed_deadlines:,} missed"
+            f" deadlines ({outcome.missed_pct:.2f} %), {outcome.recorder_drops:,} recorder"
+            f" drops{ended}",
+            markup=False,
+        )
+        console.print(
+            f"loop timing: lateness p50/p99 {outcome.lateness_p50_us:.0f}/"
+            f"{outcome.lateness_p99_us:.0f} us, compute per tick {outcome.compute_p50_us:.0f}/"
+            f"{outcome.compute_p99_us:.0f} us, sensor-to-command"
+            f" {outcome.sensor_to_command_p50_us:.0f}/{outcome.sensor_to_command_p99_us:.0f} us",
+            markup=False,
+        )
+        return
+    why = (
+        f"its outcome record is damaged ({info.outcome_problem})"
+        if info.outcome_problem
+        else "no outcome record: the session did not end cleanly, or an older hilrig wrote it"
+    )
+    if info.loop is not None:
+        loop = info.loop
+        console.print(
+            f"loop: {loop.overruns:,} overruns and {loop.recorder_drops:,} recorder drops by tick"
+            f" {loop.tick:,}; hold ticks unknown: {why}",
+            markup=False,
+        )
+    elif info.metadata.get("session") is not None:
+        console.print(f"loop: figures unknown: {why}", markup=False)
+
+
 def _print_info(console: Console, info: FileInfo) -> None:
     from rich.markup import escape
     from rich.table import Table
@@ -95,12 +131,7 @@ def _print_info(console: Console, info: FileInfo) -> None:
     start, end = info.start_ns, info.end_ns
     if start is not None and end is not None:
         console.print(f"from {utc_iso(start)} to {utc_iso(end)} ({(end - start) / 1e9:.3f} s)")
-    if info.loop is not None:
-        loop = info.loop
-        console.print(
-            f"loop: {loop.overruns:,} overruns and {loop.recorder_drops:,} recorder drops by tick"
-            f" {loop.tick:,}; hold ticks are not recorded in the file"
-        )
+    _print_loop(console, info)
     for name, values in info.metadata.items():
         table = Table(title=f"metadata: {escape(name)}", title_justify="left", show_header=False)
         for key, value in values.items():

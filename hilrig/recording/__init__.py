@@ -9,6 +9,7 @@ describe with :func:`inspect`, convert with :func:`export`. The file format is d
 from hilrig.recording.export import export
 from hilrig.recording.info import FileInfo, TopicInfo, inspect
 from hilrig.recording.mcap_records import Attachment
+from hilrig.recording.outcome import SessionOutcome
 from hilrig.recording.reader import Loaded, RecordingWarning, load, read
 from hilrig.recording.recover import Recovery, recover
 from hilrig.recording.samples import (
@@ -45,6 +46,7 @@ __all__ = [
     "Recovery",
     "Sample",
     "SessionInfo",
+    "SessionOutcome",
     "SessionWriter",
     "SplitPolicy",
     "TextSample",

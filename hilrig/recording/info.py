@@ -29,6 +29,7 @@ from hilrig.recording.chunks import (
 )
 from hilrig.recording.file_index import FileIndex
 from hilrig.recording.mcap_records import MESSAGE_PREFIX
+from hilrig.recording.outcome import OUTCOME_METADATA, SessionOutcome
 from hilrig.recording.parse import IndexRef
 from hilrig.recording.scan import add_definitions, index_mapped, open_mcap
 from hilrig.recording.session import SessionInfo
@@ -90,6 +91,8 @@ class FileInfo:
     problems: tuple[str, ...]
     loop: LoopCounters | None = None
     session_problem: str | None = None
+    outcome: SessionOutcome | None = None  # the loop's end figures (None: not in the file)
+    outcome_problem: str | None = None  # why the outcome record cannot be read
 
     @property
     def start_ns(self) -> int | None:
@@ -128,6 +131,7 @@ def inspect(path: str | os.PathLike[str], *, check: bool = False) -> FileInfo:
             session_problem = None
         except RecordingError as err:
             session_problem = str(err)
+        outcome, outcome_problem = _outcome(index)
         return FileInfo(
             path=p,
             size=index.size,
@@ -143,6 +147,8 @@ def inspect(path: str | os.PathLike[str], *, check: bool = False) -> FileInfo:
             problems=tuple(problems),
             loop=loop,
             session_problem=session_problem,
+            outcome=outcome,
+            outcome_problem=outcome_problem,
         )
     finally:
         mm.close()
@@ -203,6 +209,17 @@ def _topic_info(index: FileIndex, channel_id: int, log: npt.NDArray[np.int64] | 
     median = float(np.median(intervals))
     gaps = int((intervals > GAP_FACTOR * median).sum()) if median > 0 else 0
     return TopicInfo(channel.topic, kind, len(log), start, end, rate, int(intervals.max()), gaps)
+
+
+def _outcome(index: FileIndex) -> tuple[SessionOutcome | None, str | None]:
+    """The ``outcome`` record parsed, or why it cannot be (None, None without one)."""
+    values = index.values.get(OUTCOME_METADATA)
+    if values is None:
+        return None, None
+    try:
+        return SessionOutcome.from_metadata(values), None
+    except RecordingError as err:
+        return None, str(err)
 
 
 def _loop_counters(

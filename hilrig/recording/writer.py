@@ -32,6 +32,7 @@ from hilrig.errors import RecordingError
 from hilrig.recording import mcap_records as rec
 from hilrig.recording.encode import ChannelEncoder
 from hilrig.recording.msgdef import full_definition
+from hilrig.recording.outcome import OUTCOME_METADATA
 from hilrig.recording.samples import Sample, TextSample
 from hilrig.recording.schema import (
     MESSAGE_ENCODING,
@@ -222,10 +223,14 @@ class SessionWriter:
             self._open_part()
             self._describe_robot(self._chunk_end - self._offset_ns)  # each part stands alone
 
-    def close(self) -> None:
-        """Write what is buffered and the summary; the file is then complete. Idempotent."""
+    def close(self, outcome: Mapping[str, str] | None = None) -> None:
+        """Write what is buffered, then ``outcome`` (the session's end figures, the metadata
+        record ``outcome``, :mod:`.outcome`) if given, and the summary; the file is then
+        complete. Idempotent."""
         if self._file is not None:
             self._write_chunk()
+            if outcome is not None:
+                self._write_metadata(rec.sealed(rec.Metadata(OUTCOME_METADATA, dict(outcome))))
             self._finish_part()
 
     def __enter__(self) -> SessionWriter:
@@ -327,11 +332,7 @@ class SessionWriter:
             rec.Metadata(SESSION_METADATA, self.session.to_metadata(part=self._part))
         )
         for metadata in [session, *self._metadata]:
-            offset = self._pos
-            self._write(metadata.encode())
-            self._metadata_indexes.append(
-                rec.metadata_index(offset, self._pos - offset, metadata.name)
-            )
+            self._write_metadata(metadata)
         for attachment in self._attachments:
             offset = self._pos
             self._write(attachment.encode())
@@ -377,6 +378,12 @@ class SessionWriter:
         )
         self._file.close()
         self._file = None
+
+    def _write_metadata(self, metadata: rec.Metadata) -> None:
+        """Write ``metadata`` and index it."""
+        offset = self._pos
+        self._write(metadata.encode())
+        self._metadata_indexes.append(rec.metadata_index(offset, self._pos - offset, metadata.name))
 
     def _write(self, data: bytes | bytearray) -> None:
         assert self._file is not None

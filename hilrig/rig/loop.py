@@ -44,6 +44,7 @@ from hilrig.control import (
 from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.drivers.joint_targets.wire import Mode
 from hilrig.errors import HilrigError
+from hilrig.recording import SessionOutcome
 from hilrig.recording.samples import EventRecord
 from hilrig.rig.device_io import DeviceIO
 from hilrig.rig.events import EventDetector
@@ -141,6 +142,24 @@ class LoopSummary:
     send: LatencyHistogram = field(default_factory=LatencyHistogram)
     sensor_to_command: LatencyHistogram = field(default_factory=LatencyHistogram)
     sensor_to_ack: LatencyHistogram = field(default_factory=LatencyHistogram)
+
+    def outcome(self, *, recorder_drops: int, ended_by: str) -> SessionOutcome:
+        """These figures as the recording's ``outcome`` record."""
+        return SessionOutcome(
+            ticks=self.ticks,
+            hold_ticks=self.hold_ticks,
+            fallback_ticks=self.fallback_ticks,
+            missed_deadlines=self.missed_deadlines,
+            merged_frames=self.merged_frames,
+            recorder_drops=recorder_drops,
+            ended_by=ended_by,
+            lateness_p50_us=self.lateness.quantile_us(0.5),
+            lateness_p99_us=self.lateness.quantile_us(0.99),
+            compute_p50_us=self.compute.quantile_us(0.5),
+            compute_p99_us=self.compute.quantile_us(0.99),
+            sensor_to_command_p50_us=self.sensor_to_command.quantile_us(0.5),
+            sensor_to_command_p99_us=self.sensor_to_command.quantile_us(0.99),
+        )
 
 
 class ControlLoop:

@@ -20,6 +20,7 @@ from hilrig.recording import (
     Attachment,
     EventRecord,
     SessionInfo,
+    SessionOutcome,
     SessionWriter,
     SplitPolicy,
     default_channels,
@@ -31,7 +32,7 @@ from hilrig.rig.row_messages import EVENTS_TOPIC, ft_samples, joint_samples, tic
 from hilrig.rig.view_feed import VIEW_BATCH_S, VIEW_HANDOFF_S, ViewBatch, ViewForwarder
 
 IDLE_FLUSH_S = 0.25  # hand a quiet writer's open chunk to the OS after this long without data
-STOP = None  # the last item RecorderProcess.stop() puts on the event queue
+STOP = None  # the last item RecorderProcess.stop() puts on the event queue (after the outcome)
 BEGIN = "begin"  # RecorderProcess.begin() sends (BEGIN, session, calibration)
 
 
@@ -41,7 +42,7 @@ class RecorderJob:
 
     path: Path
     rings: tuple[RingSpec, RingSpec, RingSpec]  # ft, joint, tick
-    events: Queue[EventRecord | None]
+    events: Queue[EventRecord | SessionOutcome | None]
     parent_pid: int
     controller: str
     axis_names: tuple[str, ...]
@@ -90,7 +91,8 @@ def record(conn: Connection, job: RecorderJob) -> None:
         return
     finally:
         try:
-            writer.close()
+            outcome = recorder.outcome
+            writer.close(None if outcome is None else outcome.to_metadata())
             release_rings(rings)
         finally:  # the file is closed: now the live view's last batch may take its time
             views = None if recorder.view is None else recorder.view.finish(VIEW_HANDOFF_S)
@@ -116,6 +118,7 @@ class _Recorder:
         self.job, self.writer = job, writer
         self.ft, self.joint, self.tick = rings
         self.terminated = False
+        self.outcome: SessionOutcome | None = None  # the session's end figures, with the stop
         self.view = None
         if job.view is not None:
             self.view = ViewForwarder(job.view, rate_hz=job.view_rate_hz, batch_s=VIEW_BATCH_S)
@@ -166,10 +169,13 @@ class _Recorder:
         try:
             item = events.get(timeout=self.job.poll_s)
             while item is not STOP:
-                self.writer.write(EVENTS_TOPIC, item)
-                written += 1
-                if self.view is not None:
-                    self.view.event(item)
+                if isinstance(item, SessionOutcome):
+                    self.outcome = item
+                else:
+                    self.writer.write(EVENTS_TOPIC, item)
+                    written += 1
+                    if self.view is not None:
+                        self.view.event(item)
                 item = events.get_nowait()
         except queue.Empty:
             return written, False

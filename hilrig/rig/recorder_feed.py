@@ -15,7 +15,7 @@ from multiprocessing.queues import Queue
 from types import TracebackType
 
 from hilrig.errors import RecordingError
-from hilrig.recording import EventRecord
+from hilrig.recording import EventRecord, SessionOutcome
 from hilrig.rig.child import CONTEXT
 from hilrig.rig.records import FT_DTYPE, JOINT_DTYPE, TICK_DTYPE
 from hilrig.rig.rings import Ring, RingSpec, Rows
@@ -44,7 +44,7 @@ class RecorderFeed:
             release_rings(created)
             raise
         self.ft, self.joint, self.tick = created
-        self.events: Queue[EventRecord | None] = CONTEXT.Queue(events)
+        self.events: Queue[EventRecord | SessionOutcome | None] = CONTEXT.Queue(events)
         self.event_drops = 0
 
     def ft_slot(self) -> Rows | None:

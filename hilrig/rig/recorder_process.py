@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import NamedTuple
 
 from hilrig.errors import RecordingError
-from hilrig.recording import Attachment, SessionInfo, SplitPolicy
+from hilrig.recording import Attachment, SessionInfo, SessionOutcome, SplitPolicy
 from hilrig.rig.child import ChildProcess
 from hilrig.rig.recorder_child import BEGIN, STOP, RecorderJob, record
 from hilrig.rig.recorder_feed import RecorderFeed
@@ -138,8 +138,11 @@ class RecorderProcess:
         ``waitpid(WNOHANG)`` system call, no I/O, no allocation worth counting."""
         return self._child.alive()
 
-    def stop(self, *, timeout_s: float = 10.0) -> RecorderSummary:
-        """Record everything committed and sent so far, finish the file and wait for the process
+    def stop(
+        self, *, outcome: SessionOutcome | None = None, timeout_s: float = 10.0
+    ) -> RecorderSummary:
+        """Record everything committed and sent so far, and ``outcome`` (the session's end
+        figures) as the file's last metadata record; finish the file and wait for the process
         (a recorder that never began exits without a file: 0 messages). Calling it again returns
         the same summary.
 
@@ -156,6 +159,8 @@ class RecorderProcess:
             # The marker follows every event sent before; a stalled recorder's full queue
             # refuses it, and the join below then times out.
             with contextlib.suppress(queue.Full):
+                if outcome is not None:
+                    self._feed.events.put(outcome, timeout=timeout_s)
                 self._feed.events.put(STOP, timeout=timeout_s)
         else:
             message = "stop"

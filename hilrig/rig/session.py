@@ -38,7 +38,7 @@ from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
 from hilrig.drivers.robot_state.link import ReceivedState, RobotStateClient
 from hilrig.emulator.rig import RigConfig, RigEndpoints
 from hilrig.errors import LinkError, OutputError, RecordingError
-from hilrig.recording import SessionInfo
+from hilrig.recording import SessionInfo, SessionOutcome
 from hilrig.recording.samples import EventRecord
 from hilrig.rig.device_io import DeviceIO
 from hilrig.rig.kinds import RigKind
@@ -178,6 +178,7 @@ def record_session(
         _wait_for_recorder(devices, recorder)
         # the file is open: from here on it is kept, whatever happens
         failure: BaseException | None = None
+        outcome: SessionOutcome | None = None
         try:
             if recorder_ready is not None:
                 recorder_ready(recorder)
@@ -187,12 +188,13 @@ def record_session(
                 rig.start_scenario()
             summary = loop.run(config.duration_s, stop)
             _read_to_the_end(devices, rig)
+            outcome = summary.outcome(recorder_drops=feed.drops, ended_by=loop.ended_by)
         except BaseException as err:  # noted and raised once the file is closed
             failure = err
         recorder_error = ""
         messages: int | None = None
         try:
-            messages, drops = recorder.stop()
+            messages, drops = recorder.stop(outcome=outcome)
         except RecordingError as err:  # the recorder died: the file ends where it did
             recorder_error = f"{err}; `hilrig recover {config.out} -o OUT` restores it"
             drops = feed.drops

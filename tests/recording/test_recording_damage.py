@@ -229,7 +229,8 @@ def test_info_shows_the_loop_counters(tmp_path: Path) -> None:
     info = hilrig("info", str(path))
     assert info.exit_code == 0
     line = (
-        "loop: 2 overruns and 7 recorder drops by tick 120; hold ticks are not recorded in the file"
+        "loop: 2 overruns and 7 recorder drops by tick 120; hold ticks unknown: no outcome"
+        " record: the session did not end cleanly, or an older hilrig wrote it"
     )
     assert line in info.stdout.splitlines()
     counters = inspect(path).loop

@@ -188,6 +188,19 @@ def test_the_collision_starts_on_time_counted_from_the_first_tick(
     assert not pushed[t_s < onset_s].any()
 
 
+def test_the_file_ends_with_the_loop_s_figures(collision: SessionResult) -> None:
+    outcome = inspect(collision.path).outcome
+    summary = collision.summary
+    assert outcome is not None
+    assert (outcome.ticks, outcome.hold_ticks, outcome.fallback_ticks) == (
+        summary.ticks,
+        summary.hold_ticks,
+        summary.fallback_ticks,
+    )
+    assert outcome.missed_deadlines == summary.missed_deadlines
+    assert (outcome.recorder_drops, outcome.ended_by) == (collision.drops, "")
+
+
 def test_no_folder_of_the_output_is_stored_in_the_file(collision: SessionResult) -> None:
     from mcap.reader import make_reader
 
