@@ -62,7 +62,11 @@ def record(
         ),
     ] = None,
     view_save: Annotated[
-        Path | None, typer.Option(help="Write the live view to this .rrd file instead.")
+        Path | None,
+        typer.Option(
+            help="Write the live view to this new .rrd file instead (an existing file is "
+            "refused; it is moved into place, whole, when the session ends)."
+        ),
     ] = None,
 ) -> None:
     """Run the admittance controller in the loop with the rig and record every stream."""

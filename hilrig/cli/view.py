@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -18,7 +19,7 @@ if TYPE_CHECKING:
     from rerun import RecordingStream
     from rich.console import Console
 
-    from hilrig.viz import Sink, ViewReport
+    from hilrig.viz import Scene, Sink, ViewReport
 
 
 @app.command("view")
@@ -48,8 +49,13 @@ def view_command(
         ),
     ] = None,
     save: Annotated[
-        Path | None, typer.Option(help="Write the view to this .rrd file instead of showing it.")
+        Path | None,
+        typer.Option(
+            help="Write the view to this new .rrd file instead of showing it (an existing file "
+            "is refused unless --overwrite)."
+        ),
     ] = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing --save file.")] = False,
     web: Annotated[
         bool,
         typer.Option(
@@ -60,7 +66,8 @@ def view_command(
     connect: Annotated[
         str | None,
         typer.Option(
-            help="Stream to a running viewer or server, e.g. rerun+http://127.0.0.1:9876/proxy."
+            help="Stream to a running viewer or server, e.g. rerun+http://127.0.0.1:9876/proxy "
+            "(it must answer as a Rerun server within 3 s)."
         ),
     ] = None,
     port: Annotated[
@@ -88,10 +95,11 @@ def view_command(
     from rich.text import Text
 
     from hilrig.errors import ViewError
+    from hilrig.outputs import new_files
     from hilrig.replay import parse_specs
-    from hilrig.viz import layout, open_stream, recording_id, scene_from_session, show_scene
+    from hilrig.viz import scene_from_session
 
-    sink = _sink(save, web, connect, port, web_port)
+    sink = _sink(save, overwrite, web, connect, port, web_port)
     console = Console(highlight=False, soft_wrap=True, markup=False)
     specs = parse_specs(controller or [], setting or [], []) if controller else []
     if setting and not controller:
@@ -100,32 +108,50 @@ def view_command(
     warnings = Console(stderr=True, highlight=False, soft_wrap=True, markup=False)
     for note in scene.notes:
         warnings.print(Text.assemble(("warning: ", "yellow"), note))
+    if save is None:
+        _show(console, sink, scene, max_points, max_poses)
+        return
+    with new_files(save, overwrite=overwrite) as (temporary,):  # whole, or nothing left
+        _show(console, replace(sink, path=temporary), scene, max_points, max_poses)
+    console.print(f"wrote {save}")
+
+
+def _show(console: Console, sink: Sink, scene: Scene, max_points: int, max_poses: int) -> None:
+    """Send ``scene`` to ``sink`` and wait until it has left (a web viewer: until Ctrl-C)."""
+    from hilrig.viz import layout, open_stream, recording_id, show_scene
+
     rec, server = open_stream(sink, layout(scene, max_points), recording_id=recording_id(scene))
     try:
         report = show_scene(rec, scene, max_points=max_points, max_poses=max_poses)
         _flush(rec, sink)
         _print_report(console, report, scene.source)
-        if save is not None:
-            console.print(f"wrote {save}")
         if server is not None:
             console.print(f"web viewer: {server.url}  (Ctrl-C to stop)")
             _wait_for_interrupt()
     finally:
-        rec.disconnect()
+        rec.disconnect()  # a file is finished (and closed) here
         if server is not None:
             server.close()
 
 
-def _sink(save: Path | None, web: bool, connect: str | None, port: int, web_port: int) -> Sink:
+def _sink(
+    save: Path | None, overwrite: bool, web: bool, connect: str | None, port: int, web_port: int
+) -> Sink:
     """The one destination asked for; checked before anything is read."""
-    from hilrig.errors import ViewError
+    from hilrig.errors import OutputError, ViewError
+    from hilrig.outputs import check_new_file
     from hilrig.viz.sinks import Sink, SinkKind, check_reachable, check_rrd_path
 
     chosen = [name for name, on in (("--save", save), ("--web", web), ("--connect", connect)) if on]
     if len(chosen) > 1:
         raise ViewError(f"{' and '.join(chosen)}: choose one destination")
+    if overwrite and save is None:
+        raise ViewError("--overwrite replaces a --save file: name one")
     if save is not None:
-        return Sink(SinkKind.SAVE, path=check_rrd_path(save, "--save"))
+        check_new_file(check_rrd_path(save, "--save"), overwrite=True)  # a regular file at most
+        if not overwrite and save.exists():
+            raise OutputError(f"{save}: already exists; pass --overwrite to replace it")
+        return Sink(SinkKind.SAVE, path=save)
     if connect is not None:
         check_reachable(connect, "--connect")  # at once: Rerun would retry for minutes
         return Sink(SinkKind.CONNECT, url=connect)

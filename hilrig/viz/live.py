@@ -7,7 +7,9 @@ bounded queue, never waiting: a full queue drops the batch. The viewer-feed proc
 batches into the entity tree of a file's view (:mod:`.live_logger` on :mod:`.paths`, the
 recorded controller as run ``recorded``) and streams them to the desktop viewer, a viewer or
 server at a URL, or an ``.rrd`` file. A viewer that cannot be reached, or stops taking data, is
-reported once; the feed then ends and the session goes on recording everything.
+reported once; the feed then ends and the session goes on recording everything. An ``.rrd``
+file must be new: it is refused before the session if it exists, written under a temporary name
+beside it and moved into place at the end, whole, or not at all after a problem.
 
 This module is the session's end: :class:`LiveView`, :func:`check_sink`, :class:`LiveReport`
 (and, for callers of the single module it once was, the logger's public names).
@@ -16,15 +18,17 @@ This module is the session's end: :class:`LiveView`, :func:`check_sink`, :class:
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass
 from multiprocessing.queues import Queue
 
 from hilrig.errors import ViewError
+from hilrig.outputs import check_new_file, temporary_beside
 from hilrig.rig import VIEW_RATE_HZ, ChildProcess, LiveViewPort, ViewBatch, ViewCounts
 from hilrig.rig.child import CONTEXT
-from hilrig.viz.live_feed import LiveJob, serve
+from hilrig.viz.live_feed import LiveJob, serve, unwritten
 from hilrig.viz.live_logger import LiveLogger, about_live, event_line, open_live
 from hilrig.viz.sinks import Sink, SinkKind, check_rrd_path, grpc_address
 
@@ -56,13 +60,13 @@ class LiveReport:
 
 def check_sink(sink: Sink) -> None:
     """Raises ViewError (one line) unless the live view can go to ``sink``: the desktop viewer
-    (SPAWN), a Rerun gRPC URL (CONNECT) or an ``.rrd`` file (overwritten) in an existing,
-    writable directory (SAVE)."""
+    (SPAWN), a Rerun gRPC URL (CONNECT) or a new ``.rrd`` file in an existing, writable
+    directory (SAVE; OutputError if something is there already)."""
     match sink.kind:
         case SinkKind.CONNECT:
             grpc_address(sink.url or "", "live view URL")
         case SinkKind.SAVE:
-            check_rrd_path(sink.path, "live view file")
+            check_new_file(check_rrd_path(sink.path, "live view file"))
         case SinkKind.WEB:
             raise ViewError(
                 "the live view goes to the desktop viewer, a viewer's URL or an .rrd file; for a "
@@ -94,6 +98,9 @@ class LiveView(LiveViewPort):
         check_sink(sink)
         self._queue: Queue[ViewBatch | None] = CONTEXT.Queue(queue_batches)
         self.rate_hz = rate_hz
+        keep_as = sink.path if sink.kind is SinkKind.SAVE else None
+        if keep_as is not None:  # the feed writes beside it and moves it in when whole
+            sink = dataclasses.replace(sink, path=temporary_beside(keep_as))
         self._job = LiveJob(
             sink,
             session_id,
@@ -104,6 +111,7 @@ class LiveView(LiveViewPort):
             urdf,
             self._queue,
             os.getpid(),
+            keep_as,
         )
         self._child = ChildProcess("hilrig-live-view", "the live view", ViewError)
         self._problem = ""
@@ -126,7 +134,7 @@ class LiveView(LiveViewPort):
         """End the feed (waiting up to ``timeout_s`` for its last flush) and report, with the
         recorder's ``counts`` (None if the recorder did not report)."""
         counts = counts or ViewCounts(error="the recorder did not report on the view")
-        shown, problem = 0, self._problem
+        shown, problem, said = 0, self._problem, ""
         if self._child.started and not problem:
             with contextlib.suppress(Exception):  # the recorder's marker may be lost
                 self._queue.put_nowait(None)
@@ -134,17 +142,22 @@ class LiveView(LiveViewPort):
                 problem = f"the live view did not finish within {timeout_s:g} s; stopped it"
             done = self._done()
             if done is not None:
-                shown, problem = done[0], problem or done[1]
+                shown, said = done
             elif not problem:
                 problem = f"the live view exited with code {self._child.exitcode}"
         self.close()
-        return LiveReport(counts.sent, counts.dropped, shown, problem or counts.error)
+        if problem:  # the feed's own problem names its file already
+            problem = unwritten(self._job, problem)
+        return LiveReport(counts.sent, counts.dropped, shown, problem or said or counts.error)
 
     def close(self) -> None:
-        """Stop the feed if it still runs; release the queue (never waiting on it)."""
+        """Stop the feed if it still runs; release the queue (never waiting on it); remove an
+        ``.rrd`` the feed left unfinished."""
         self._child.close()
         self._queue.close()
         self._queue.cancel_join_thread()
+        if self._job.keep_as is not None and self._job.sink.path is not None:
+            self._job.sink.path.unlink(missing_ok=True)
 
     def _done(self) -> tuple[int, str] | None:
         """The feed's final report (batches shown, problem), if it sent one."""

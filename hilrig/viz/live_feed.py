@@ -2,7 +2,8 @@
 niced, it takes the recorder's batches off the bounded queue and logs them with
 :class:`~hilrig.viz.live_logger.LiveLogger` until the end marker or its parent's death. A
 viewer that cannot be reached, or stops taking data, is said once; the feed then ends and the
-session goes on recording everything.
+session goes on recording everything. An ``.rrd`` file is written under a temporary name beside
+it and moved into place once whole (never over a file), or removed after a problem.
 """
 
 from __future__ import annotations
@@ -10,19 +11,20 @@ from __future__ import annotations
 import contextlib
 import os
 import queue
-import socket
 import sys
 import time
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from multiprocessing.queues import Queue
+from pathlib import Path
 from typing import NoReturn
 
-from hilrig.errors import ViewError
+from hilrig.errors import OutputError, ViewError
+from hilrig.outputs import new_files
 from hilrig.rig import ViewBatch
 from hilrig.rig.child import report
 from hilrig.viz.live_logger import LiveLogger, open_live
-from hilrig.viz.sinks import Sink, SinkKind, grpc_address
+from hilrig.viz.sinks import Sink, SinkKind, viewer_problem
 
 POLL_S = 0.2  # the feed checks on its parent this often while no batch comes
 CHECK_S = 1.0  # the stream's health (a flush) is checked this often
@@ -44,6 +46,7 @@ class LiveJob:
     urdf: str | None
     queue: Queue[ViewBatch | None]
     parent_pid: int
+    keep_as: Path | None = None  # SAVE: the file asked for (the sink's path is its temporary)
 
 
 def serve(conn: Connection, job: LiveJob) -> None:
@@ -64,7 +67,7 @@ def serve(conn: Connection, job: LiveJob) -> None:
         )
     except Exception as err:  # a viewer problem, whatever it is, must not reach the session
         report(conn, "ready")
-        _give_up(conn, 0, _reason(err))
+        _give_up(conn, job, 0, _reason(err))
     report(conn, "ready")
     problem = _feed(job, live)
     if not problem:
@@ -73,8 +76,9 @@ def serve(conn: Connection, job: LiveJob) -> None:
             live.rec.disconnect()
         except Exception as err:
             problem = f"the viewer did not take the last data: {_reason(err)}"
+    problem = problem or _keep(job)
     if problem:
-        _give_up(conn, live.batches, problem)
+        _give_up(conn, job, live.batches, problem)
     report(conn, "done", (live.batches, ""))
 
 
@@ -101,24 +105,53 @@ def _feed(job: LiveJob, live: LiveLogger) -> str:
 
 
 def _reachable(sink: Sink) -> None:
-    """Raises ViewError if nothing listens at a CONNECT sink's address (Rerun would retry it
-    for 5 s before sending anything)."""
+    """Raises ViewError unless a Rerun viewer or server answers at a CONNECT sink's URL within
+    CONNECT_TIMEOUT_S (:func:`~hilrig.viz.sinks.viewer_problem`): Rerun would retry for 5 s
+    before sending anything, and wait on something that never answers."""
     if sink.kind is not SinkKind.CONNECT:
         return
     url = sink.url or ""
+    problem = viewer_problem(url, CONNECT_TIMEOUT_S)
+    if problem:
+        raise ViewError(f"{url}: {problem}")
+
+
+def _keep(job: LiveJob) -> str:
+    """Move a finished ``.rrd`` into place, never over a file that appeared meanwhile; the
+    problem if it cannot be ("" if moved, or nothing to move)."""
+    if job.keep_as is None or job.sink.path is None:
+        return ""
     try:
-        socket.create_connection(grpc_address(url), timeout=CONNECT_TIMEOUT_S).close()
+        with new_files(job.keep_as) as (moved,):
+            os.replace(job.sink.path, moved)
+    except OutputError as err:
+        return str(err)
     except OSError as err:
-        raise ViewError(f"no viewer at {url} ({err.strerror or err})") from err
+        return f"{job.keep_as}: cannot be moved into place ({err.strerror or err})"
+    return ""
+
+
+def unwritten(job: LiveJob, problem: str) -> str:
+    """After ``problem``, remove an unfinished ``.rrd``; ``problem`` naming the file asked for,
+    not its temporary, and saying it is not written."""
+    final, temporary = job.keep_as, job.sink.path
+    if final is None or temporary is None:
+        return problem
+    temporary.unlink(missing_ok=True)
+    problem = problem.replace(str(temporary), str(final))
+    if problem.startswith(f"{final}:") or final.exists():  # said, or moved in after all
+        return problem
+    return f"{problem}; {final} not written"
 
 
 def _reason(err: BaseException) -> str:
     return str(err) if isinstance(err, ViewError) else f"{type(err).__name__}: {err}"
 
 
-def _give_up(conn: Connection, shown: int, problem: str) -> NoReturn:
+def _give_up(conn: Connection, job: LiveJob, shown: int, problem: str) -> NoReturn:
     """Say ``problem`` once on stderr and to the session, then leave at once: Rerun would wait
     up to 5 s more for a viewer that is not there."""
+    problem = unwritten(job, problem)
     line = f"hilrig: live view: {problem}; the session goes on and records everything\n"
     with contextlib.suppress(OSError, ValueError):
         sys.stderr.write(("\r\033[K" if sys.stderr.isatty() else "") + line)

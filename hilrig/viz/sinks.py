@@ -1,11 +1,17 @@
 """Where a view goes: the desktop viewer, an ``.rrd`` file, a viewer or server at a URL, or a
-web viewer served on localhost by Rerun's own server (``rerun --serve-web``)."""
+web viewer served on localhost by Rerun's own server (``rerun --serve-web``).
+
+A viewer's URL is checked by asking it (:func:`viewer_problem`): every Rerun gRPC server (the
+desktop viewer, ``rerun --serve-web``, ``rerun --save``) also takes gRPC-web over HTTP/1.1, for
+the web viewer, so one plain request to its message proxy, answered or not within a few seconds,
+tells a Rerun server from anything else listening there."""
 
 from __future__ import annotations
 
 import contextlib
 import os
 import socket
+import ssl
 import subprocess
 import sys
 import tempfile
@@ -27,7 +33,12 @@ GRPC_PORT = 9876  # Rerun's defaults
 WEB_PORT = 9090
 RRD_SUFFIX = ".rrd"
 URL_SCHEMES = {"rerun": 443, "rerun+http": 80, "rerun+https": 443}  # and their default ports
-CONNECT_TIMEOUT_S = 3.0  # a viewer's address must accept a connection within this
+CONNECT_TIMEOUT_S = 3.0  # a viewer must accept a connection and answer within this
+#: A server-streaming call of Rerun's message proxy: its answer's head comes at once.
+PROBE_PATH = "/rerun.sdk_comms.v1alpha1.MessageProxyService/ReadTables"
+PROBE_HEAD_BYTES = 16384  # an answer's head read at most
+HTTP_PREFIX = b"HTTP/1."
+NOT_RERUN = "nothing answering like a Rerun viewer there"
 NO_DISPLAY = (
     "no display for the Rerun viewer (DISPLAY and WAYLAND_DISPLAY are not set): save to a file "
     "or use the web viewer or a viewer's URL"
@@ -53,8 +64,9 @@ class Sink:
 
 
 def check_rrd_path(path: Path | None, what: str) -> Path:
-    """``path`` if an ``.rrd`` file can be written there (it is overwritten); else ViewError
-    naming ``what`` (the option or role) and the path."""
+    """``path`` if it names an ``.rrd`` file in an existing, writable folder; else ViewError
+    naming ``what`` (the option or role) and the path. A file already there is the caller's to
+    refuse or replace (:func:`hilrig.outputs.check_new_file`)."""
     if path is None or path.suffix.lower() != RRD_SUFFIX:
         raise ViewError(f"{what} {path}: the name must end in {RRD_SUFFIX}")
     if path.is_dir():
@@ -82,16 +94,103 @@ def grpc_address(url: str, what: str = "URL") -> tuple[str, int]:
 
 
 def check_reachable(url: str, what: str = "URL", timeout_s: float = CONNECT_TIMEOUT_S) -> None:
-    """Raises ViewError (one line) unless something accepts a connection at the Rerun gRPC
-    ``url`` within ``timeout_s``: Rerun itself would keep retrying for minutes."""
-    address = grpc_address(url, what)
+    """Raises ViewError (one line, naming ``what`` and ``url``) unless a Rerun viewer or server
+    answers at the gRPC ``url`` within ``timeout_s`` (:func:`viewer_problem`): Rerun itself
+    would retry for minutes, or wait for an answer that never comes."""
+    grpc_address(url, what)
+    problem = viewer_problem(url, timeout_s)
+    if problem:
+        raise ViewError(f"{what} {url}: {problem}")
+
+
+def viewer_problem(url: str, timeout_s: float = CONNECT_TIMEOUT_S) -> str:
+    """Why no Rerun viewer or server answers at the gRPC ``url`` within ``timeout_s`` (one
+    line), or "" if one does: something must accept a connection and answer a gRPC-web call of
+    Rerun's message proxy (:data:`PROBE_PATH`) as a Rerun server does."""
+    host, port = grpc_address(url)
+    deadline = time.monotonic() + timeout_s
     try:
-        socket.create_connection(address, timeout=timeout_s).close()
+        connection = socket.create_connection((host, port), timeout=timeout_s)
     except TimeoutError:
-        raise ViewError(f"{what} {url}: no answer within {timeout_s:g} s") from None
+        return f"no answer within {timeout_s:g} s"
     except OSError as err:
-        reason = err.strerror or type(err).__name__
-        raise ViewError(f"{what} {url}: no viewer listening there ({reason})") from None
+        return f"no viewer listening there ({err.strerror or type(err).__name__})"
+    try:
+        with connection:
+            head = _probe(connection, host, port, urlsplit(url).scheme != "rerun+http", deadline)
+    except TimeoutError:
+        return f"{NOT_RERUN} (no answer within {timeout_s:g} s)"
+    except ssl.SSLError as err:
+        return f"{NOT_RERUN} (TLS: {err.reason or type(err).__name__})"
+    except OSError as err:
+        return f"{NOT_RERUN} ({err.strerror or type(err).__name__})"
+    reason = _not_rerun(head)
+    return f"{NOT_RERUN} ({reason})" if reason else ""
+
+
+def _probe(connection: socket.socket, host: str, port: int, tls: bool, deadline: float) -> bytes:
+    """Send the gRPC-web call (over TLS if ``tls``); the answer's head (status line and headers,
+    up to :data:`PROBE_HEAD_BYTES`), or what came before the connection closed."""
+    request = (
+        f"POST {PROBE_PATH} HTTP/1.1\r\nHost: {host}:{port}\r\n"
+        "Content-Type: application/grpc-web+proto\r\nX-Grpc-Web: 1\r\n"
+        "Content-Length: 5\r\nConnection: close\r\n\r\n"
+    ).encode("ascii") + bytes(5)  # one empty message: flag 0, length 0
+    _left(connection, deadline)
+    stream = connection
+    if tls:
+        stream = ssl.create_default_context().wrap_socket(connection, server_hostname=host)
+    head = b""
+    with stream:
+        _left(stream, deadline)
+        stream.sendall(request)
+        while _incomplete(head):
+            try:
+                _left(stream, deadline)
+                chunk = stream.recv(4096)
+            except TimeoutError:
+                if head:
+                    break  # judged by what came
+                raise
+            if not chunk:
+                break
+            head += chunk
+    return head
+
+
+def _incomplete(head: bytes) -> bool:
+    """More of an answer's head may tell: no end of its headers yet, not too long, and nothing
+    yet that could not begin an HTTP answer."""
+    http = HTTP_PREFIX.startswith(head[: len(HTTP_PREFIX)])
+    return http and b"\r\n\r\n" not in head and len(head) < PROBE_HEAD_BYTES
+
+
+def _left(stream: socket.socket, deadline: float) -> None:
+    """Give ``stream``'s next call the time left until ``deadline``; TimeoutError if none is."""
+    left = deadline - time.monotonic()
+    if left <= 0:
+        raise TimeoutError
+    stream.settimeout(left)
+
+
+def _not_rerun(head: bytes) -> str:
+    """Why ``head`` is not a Rerun server's answer to the probe ("" if it is)."""
+    if not head:
+        return "it closed the connection without answering"
+    lines = head.split(b"\r\n\r\n", 1)[0].decode("latin-1").split("\r\n")
+    status = lines[0].split()
+    if len(status) < 2 or not status[0].startswith(HTTP_PREFIX.decode()):
+        return "its answer is not HTTP"
+    if b"\r\n\r\n" not in head:
+        return "its answer is not a whole HTTP head"
+    fields = (line.partition(":") for line in lines[1:])
+    headers = {name.strip().lower(): value.strip() for name, _, value in fields}
+    kind = headers.get("content-type", "")
+    if status[1] != "200" or not kind.startswith("application/grpc-web"):
+        return f"HTTP {status[1]} {kind or 'without a content type'}, not gRPC-web"
+    if headers.get("grpc-status") == "12":  # UNIMPLEMENTED
+        return "a gRPC server without Rerun's message proxy"
+    return ""
 
 
 def check_display(port: int = GRPC_PORT) -> None:

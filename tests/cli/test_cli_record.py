@@ -142,6 +142,7 @@ def record(tmp_path: Path, *args: str, **env: str) -> subprocess.CompletedProces
         (["--out", "afile/s.mcap"], "afile/s.mcap: afile is not a folder"),
         (["--out", "afile/new/s.mcap"], "afile/new/s.mcap: afile is not a folder"),
         (["--out", "kept.mcap"], "kept.mcap: already exists; refusing to overwrite it"),
+        (["--view-save", "kept.rrd"], "kept.rrd: already exists; refusing to overwrite it"),
     ],
 )
 def test_a_bad_input_is_one_line_before_any_file_is_made(
@@ -153,6 +154,7 @@ def test_a_bad_input_is_one_line_before_any_file_is_made(
     (tmp_path / "flat.toml").write_text('trajectory = "circle"\n')
     (tmp_path / "afile").write_bytes(b"")
     (tmp_path / "kept.mcap").write_bytes(b"a volunteer's session")
+    (tmp_path / "kept.rrd").write_bytes(b"a volunteer's live view")
     before = sorted(p.name for p in tmp_path.iterdir())
     out = [] if "--out" in args else ["--out", "new/session.mcap"]
     result = record(tmp_path, *out, *args)
@@ -160,6 +162,7 @@ def test_a_bad_input_is_one_line_before_any_file_is_made(
     assert result.stderr == f"error: {message}\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == before  # no file, no folder
     assert (tmp_path / "kept.mcap").read_bytes() == b"a volunteer's session"
+    assert (tmp_path / "kept.rrd").read_bytes() == b"a volunteer's live view"
 
 
 def test_the_live_view_without_a_display_is_refused_at_once(tmp_path: Path) -> None:

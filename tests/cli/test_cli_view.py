@@ -17,6 +17,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "viz"))
 from rrd_helpers import Rrd
+from servers import impostor
 
 from hilrig.viz.sinks import rerun_binary
 
@@ -174,6 +175,7 @@ def test_web_serves_the_viewer_on_localhost_until_interrupted() -> None:
             "--port and --web-port are both 9000: they must differ",
         ),
         (["--set", "fixed.kd=5", "--save", "x.rrd"], "--set changes a --controller: name one"),
+        (["--overwrite"], "--overwrite replaces a --save file: name one"),
         (["-c", "wobbly", "--save", "x.rrd"], None),
     ],
 )
@@ -242,3 +244,35 @@ def test_connect_where_nothing_listens_fails_at_once_in_one_line() -> None:
     assert (
         result.stderr == f"error: --connect {url}: no viewer listening there (Connection refused)\n"
     )
+
+
+@pytest.mark.parametrize(
+    ("answer", "why"),
+    [(None, "no answer within 3 s"), (b"\x00\x15\xfe garbage\r\n", "its answer is not HTTP")],
+)
+def test_connect_where_something_else_listens_fails_in_one_line(
+    answer: bytes | None, why: str
+) -> None:
+    """A loopback server that accepts and stays silent, or answers garbage: Rerun would wait on
+    it for minutes."""
+    with impostor(answer) as url:
+        result = hilrig("view", str(EXAMPLE), "--connect", url, timeout=60)
+    assert (result.returncode, result.stdout) == (2, "")
+    assert result.stderr == (
+        f"error: --connect {url}: nothing answering like a Rerun viewer there ({why})\n"
+    )
+
+
+def test_save_refuses_an_existing_file_and_overwrite_replaces_it(tmp_path: Path) -> None:
+    out = tmp_path / "kept.rrd"
+    out.write_bytes(b"a view someone keeps")
+    result = hilrig("view", str(EXAMPLE), "--save", str(out))
+    assert (result.returncode, result.stdout) == (2, "")
+    assert result.stderr == f"error: {out}: already exists; pass --overwrite to replace it\n"
+    assert out.read_bytes() == b"a view someone keeps"
+    assert [p.name for p in tmp_path.iterdir()] == ["kept.rrd"]
+    result = hilrig("view", str(EXAMPLE), "--save", str(out), "--overwrite")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.splitlines()[-1] == f"wrote {out}"
+    assert "/series/offset/x/recorded" in Rrd(out).entities()
+    assert [p.name for p in tmp_path.iterdir()] == ["kept.rrd"]  # no temporary left

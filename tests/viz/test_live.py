@@ -13,12 +13,14 @@ import threading
 import time
 import warnings
 from collections.abc import Iterator
+from contextlib import nullcontext
 from multiprocessing.queues import Queue
 from pathlib import Path
 
 import numpy as np
 import pytest
 from rrd_helpers import Rrd
+from servers import impostor
 
 from hilrig.errors import ViewError
 from hilrig.recording import EventKind, EventRecord, SessionInfo, inspect, load
@@ -447,13 +449,21 @@ def test_the_recording_with_a_live_view_is_complete(streamed: tuple[SessionResul
     assert_recording_complete(streamed[0])
 
 
+@pytest.mark.parametrize(
+    "silent", [False, True], ids=["nothing listens", "a server that never answers"]
+)
 def test_a_viewer_that_is_not_there_is_reported_once_and_the_session_goes_on(
-    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], silent: bool
 ) -> None:
-    url = grpc_url(free_port())  # nothing listens there
-    result = session(tmp_path / "s.mcap", 2.0, Sink(SinkKind.CONNECT, url=url))
+    with impostor(None) if silent else nullcontext(grpc_url(free_port())) as url:
+        result = session(tmp_path / "s.mcap", 2.0, Sink(SinkKind.CONNECT, url=url))
     assert result.view is not None and result.view.shown == 0
-    assert result.view.problem.startswith(f"no viewer at {url}")
+    why = (
+        "nothing answering like a Rerun viewer there (no answer within 2 s)"
+        if silent
+        else "no viewer listening there (Connection refused)"
+    )
+    assert result.view.problem == f"{url}: {why}"
     assert capfd.readouterr().err.count("live view:") == 1
     ticks = load(result.path, topics=["/diagnostics/loop"])["/diagnostics/loop"]
     span_s = (ticks.index[-1] - ticks.index[0]) / 1e9
