@@ -174,6 +174,7 @@ def print_result(console: Console, result: SessionResult) -> None:
     late = summary.lateness.summary_us()
     s2c = summary.sensor_to_command.summary_us()
     ack = summary.sensor_to_ack.summary_us()
+    compute, send = summary.compute.summary_us(), summary.send.summary_us()
     missed_pct = 100 * summary.missed_deadlines / max(summary.ticks, 1)
     written = "unknown" if result.messages_written is None else result.messages_written
     lines = [
@@ -181,6 +182,8 @@ def print_result(console: Console, result: SessionResult) -> None:
         f"  {summary.ticks} ticks, {summary.missed_deadlines} missed deadlines "
         f"({missed_pct:.3f} %), {summary.hold_ticks} hold ticks",
         f"  lateness p50 {late['p50']:.0f} us, p99 {late['p99']:.0f} us, max {late['max']:.0f} us",
+        f"  compute per tick p50 {compute['p50']:.0f} us, p99 {compute['p99']:.0f} us;"
+        f" send p99 {send['p99']:.0f} us",
         f"  sensor to command sent p50 {s2c['p50']:.0f} us, p99 {s2c['p99']:.0f} us",
         f"  sensor to command acknowledged p50 {ack['p50']:.0f} us, p99 {ack['p99']:.0f} us",
         f"  {written} messages written, {result.drops} dropped; {len(result.events)} events",

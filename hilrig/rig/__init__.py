@@ -21,7 +21,8 @@ if TYPE_CHECKING:
     from hilrig.rig.child import START_METHOD, ChildProcess
     from hilrig.rig.kinds import RigKind
     from hilrig.rig.live_port import LiveReportLike, LiveViewPort
-    from hilrig.rig.loop import ControlLoop, LoopConfig, LoopSummary
+    from hilrig.rig.loop import ControlLoop, LoopConfig
+    from hilrig.rig.loop_figures import LoopStatus, LoopSummary
     from hilrig.rig.recorder_feed import RecorderFeed
     from hilrig.rig.recorder_process import RecorderProcess, RecorderSummary
     from hilrig.rig.records import AXES, AXIS_NAMES, FT_DTYPE, JOINT_DTYPE, JOINTS, TICK_DTYPE
@@ -38,7 +39,8 @@ _MODULES = {
     "child": ("START_METHOD", "ChildProcess"),
     "kinds": ("RigKind",),
     "live_port": ("LiveReportLike", "LiveViewPort"),
-    "loop": ("ControlLoop", "LoopConfig", "LoopSummary"),
+    "loop": ("ControlLoop", "LoopConfig"),
+    "loop_figures": ("LoopStatus", "LoopSummary"),
     "recorder_feed": ("RecorderFeed",),
     "recorder_process": ("RecorderProcess", "RecorderSummary"),
     "records": ("AXES", "AXIS_NAMES", "FT_DTYPE", "JOINTS", "JOINT_DTYPE", "TICK_DTYPE"),
@@ -68,6 +70,7 @@ __all__ = [
     "LiveReportLike",
     "LiveViewPort",
     "LoopConfig",
+    "LoopStatus",
     "LoopSummary",
     "RecorderFeed",
     "RecorderProcess",

@@ -27,7 +27,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -44,10 +44,10 @@ from hilrig.control import (
 from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.drivers.joint_targets.wire import Mode
 from hilrig.errors import HilrigError
-from hilrig.recording import SessionOutcome
 from hilrig.recording.samples import EventRecord
 from hilrig.rig.device_io import DeviceIO
 from hilrig.rig.events import EventDetector
+from hilrig.rig.loop_figures import LoopStatus, LoopSummary
 from hilrig.rig.safety import SafetyClamp
 from hilrig.rig.tick import (
     COMMAND_OK,
@@ -62,7 +62,7 @@ from hilrig.rig.tick import (
 from hilrig.rig.trajectory import Trajectory
 from hilrig.rig.virtual import VirtualInput
 from hilrig.robot import RobotModel
-from hilrig.timing import LatencyHistogram, realtime_python
+from hilrig.timing import realtime_python
 
 COMMAND_FAULT_HOLD_NS = 50_000_000  # after a failed joint-target write, hold this long
 WATCHDOG_TICKS = 100  # how often the session's watchdog (e.g. a living recorder) is asked
@@ -104,62 +104,6 @@ class LoopConfig:
             "rate_hz": self.rate_hz,
             **{k: str(v) for k, v in params.__dict__.items() if v is not None},
         }
-
-
-@dataclass
-class LoopStatus:
-    """What the status line shows; written by the loop, read by anyone (plain values)."""
-
-    ticks: int = 0
-    lateness_us: float = 0.0
-    force_n: float = 0.0
-    offset_mm: float = 0.0
-    contact: str = "free"
-    holding: str = ""
-    drops: int = 0
-    stopped: bool = False
-
-
-@dataclass
-class LoopSummary:
-    """End-of-run numbers: tick counts, lateness and latency histograms.
-
-    ``io``: reading the three links and storing their rows, before a tick; ``compute``: the tick
-    itself but for its send (the compiled tick, the events, the tick row written); ``send``: the
-    Modbus request's send call (the OS's socket write). ``sensor_to_command``: F/T frame read ->
-    the Modbus request with the targets computed from it sent; ``sensor_to_ack``: the same frame
-    -> that request acknowledged by the robot.
-    """
-
-    ticks: int = 0
-    missed_deadlines: int = 0  # ticks ending over a period after nominal, and merged frames
-    fallback_ticks: int = 0  # ticks run on the deadline because no frame came
-    merged_frames: int = 0  # frames read together with a newer one: no tick of their own
-    hold_ticks: int = 0
-    lateness: LatencyHistogram = field(default_factory=LatencyHistogram)
-    io: LatencyHistogram = field(default_factory=LatencyHistogram)
-    compute: LatencyHistogram = field(default_factory=LatencyHistogram)
-    send: LatencyHistogram = field(default_factory=LatencyHistogram)
-    sensor_to_command: LatencyHistogram = field(default_factory=LatencyHistogram)
-    sensor_to_ack: LatencyHistogram = field(default_factory=LatencyHistogram)
-
-    def outcome(self, *, recorder_drops: int, ended_by: str) -> SessionOutcome:
-        """These figures as the recording's ``outcome`` record."""
-        return SessionOutcome(
-            ticks=self.ticks,
-            hold_ticks=self.hold_ticks,
-            fallback_ticks=self.fallback_ticks,
-            missed_deadlines=self.missed_deadlines,
-            merged_frames=self.merged_frames,
-            recorder_drops=recorder_drops,
-            ended_by=ended_by,
-            lateness_p50_us=self.lateness.quantile_us(0.5),
-            lateness_p99_us=self.lateness.quantile_us(0.99),
-            compute_p50_us=self.compute.quantile_us(0.5),
-            compute_p99_us=self.compute.quantile_us(0.99),
-            sensor_to_command_p50_us=self.sensor_to_command.quantile_us(0.5),
-            sensor_to_command_p99_us=self.sensor_to_command.quantile_us(0.99),
-        )
 
 
 class ControlLoop:

@@ -43,7 +43,8 @@ from hilrig.recording.samples import EventRecord
 from hilrig.rig.device_io import DeviceIO
 from hilrig.rig.kinds import RigKind
 from hilrig.rig.live_port import LiveReportLike, LiveViewPort
-from hilrig.rig.loop import ControlLoop, LoopSummary
+from hilrig.rig.loop import ControlLoop
+from hilrig.rig.loop_figures import LoopSummary
 from hilrig.rig.recorder_feed import RecorderFeed
 from hilrig.rig.recorder_process import RecorderProcess
 from hilrig.rig.records import AXIS_NAMES

@@ -73,6 +73,8 @@ def result(path: Path, view: LiveReportLike | None = None) -> SessionResult:
         summary.lateness.add(lateness_us * 1000)
         summary.sensor_to_command.add(lateness_us * 1000)
         summary.sensor_to_ack.add((lateness_us + 1000) * 1000)
+        summary.compute.add(lateness_us // 10 * 1000)
+        summary.send.add(lateness_us // 100 * 1000)
     rig = RigCounters(*(10_000_000,) * 14, slot_lateness_us=(43.0, 1337.0, 9999.0))
     return SessionResult(
         path,
@@ -94,16 +96,17 @@ def test_the_summary_fits_80_columns_keeps_every_number_and_reads_no_markup() ->
     print_result(Console(file=stream, width=80, soft_wrap=True), result(path, Live()))
     lines = stream.getvalue().splitlines()
     assert lines[0] == "recorded a[red]b.mcap"
-    assert lines[1:7] == [
+    assert lines[1:8] == [
         "  1234567 ticks, 81234 missed deadlines (6.580 %), 136 hold ticks",
         "  lateness p50 1060 us, p99 18711 us, max 18711 us",
+        "  compute per tick p50 106 us, p99 1871 us; send p99 187 us",
         "  sensor to command sent p50 1060 us, p99 18711 us",
         "  sensor to command acknowledged p50 2060 us, p99 19711 us",
         "  8765432109 messages written, 12345 dropped; 0 events",
         "  ended early: the recorder process died; the robot was held",
     ]
-    assert lines[7].startswith("  the file is incomplete: recorder of a[red]b.mcap: exited with")
-    assert lines[8:] == [
+    assert lines[8].startswith("  the file is incomplete: recorder of a[red]b.mcap: exited with")
+    assert lines[9:] == [
         "  emulated rig: 10000000 F/T frames, 10000000 joint states sent",
         "  emulated rig's own slots late p50 43 us, p99 1337 us",
         "  live view: 601 batches shown, 604 sent, 3 dropped",
