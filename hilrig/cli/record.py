@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from hilrig.cli.app import app
-from hilrig.cli.options import SCENARIO_NAMES, LawOption
+from hilrig.cli.options import SCENARIO_NAMES, SCENARIO_SETTINGS_HELP, LawOption
 from hilrig.rig.kinds import RigKind
 
 if TYPE_CHECKING:
@@ -31,15 +31,29 @@ def record(
             help="TOML: \\[endpoints] of a real rig (ft_wrist_port = '/dev/ttyUSB0', robot_state "
             "= 'host:8002', modbus = 'host:502', RTU over TCP) and/or \\[trajectory] (name = "
             "'waypoints', points = \\[\\[t_s, dx_m, dy_m, dz_m], ...], or another trajectory's "
-            "options)."
+            "options) and/or \\[scenario] (name = 'hand-contact' and its settings, e.g. "
+            "stiffness_n_m = 800)."
         ),
     ] = None,
     controller: Annotated[LawOption, typer.Option(help="The admittance law.")] = LawOption.ADAPTIVE,
     params: Annotated[str, typer.Option(help="Preset of the Cartesian axes.")] = "adaptive",
     joint_params: Annotated[str, typer.Option(help="Preset of the joints.")] = "adaptive-joint",
     scenario: Annotated[
-        str, typer.Option(help=f"Volunteer model (emulated rig): {', '.join(SCENARIO_NAMES)}.")
-    ] = "paper-end-effector",
+        str | None,
+        typer.Option(
+            help=f"Volunteer model (emulated rig): {', '.join(SCENARIO_NAMES)} (default"
+            " paper-end-effector, or the config's \\[scenario] name)."
+        ),
+    ] = None,
+    scenario_set: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--scenario-set",
+            metavar="KEY=VALUE",
+            help="A setting of the scenario (repeatable; over the config's \\[scenario] values);"
+            f" vectors as x,y,z, none for no period. {SCENARIO_SETTINGS_HELP}",
+        ),
+    ] = None,
     trajectory: Annotated[
         str, typer.Option(help="Task: circle, square, waypoints (points from --config), hold.")
     ] = "circle",
@@ -86,7 +100,8 @@ def record(
     session = SessionConfig(
         out=session_path(out, subject),
         subject_id=subject,
-        scenario=scenario,
+        scenario=scenario or settings.scenario or "paper-end-effector",
+        scenario_settings={**settings.scenario_settings, **key_values(scenario_set or [])},
         rig=rig,
         endpoints=settings.endpoints,
         duration_s=duration,
@@ -97,6 +112,7 @@ def record(
         ),
         session_id=time.strftime("%Y%m%d-%H%M%S"),
     )
+    session.check()  # every mistake, one line, before anything starts
     live = live_view(sink, session) if sink is not None else None
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
@@ -110,6 +126,19 @@ def record(
         raise HilrigError(f"the recording is incomplete: {result.recorder_error}")
     if result.ended_by:
         raise HilrigError(f"the session ended early: {result.ended_by}; see {result.path}")
+
+
+def key_values(items: list[str], option: str = "--scenario-set") -> dict[str, object]:
+    """``KEY=VALUE`` texts as a dict (a later key wins); HilrigError (one line) otherwise."""
+    from hilrig.errors import HilrigError
+
+    values: dict[str, object] = {}
+    for item in items:
+        key, equals, value = item.partition("=")
+        if not equals or not key.strip():
+            raise HilrigError(f"{option} {item!r}: expected KEY=VALUE, e.g. stiffness_n_m=800")
+        values[key.strip()] = value
+    return values
 
 
 def view_sink(view: bool, view_url: str | None, view_save: Path | None) -> Sink | None:

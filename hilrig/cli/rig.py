@@ -20,6 +20,14 @@ def serve(
         str,
         typer.Option("--scenario", help=f"Volunteer model: {', '.join(SCENARIO_NAMES)}."),
     ] = "paper-end-effector",
+    scenario_set: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--scenario-set",
+            metavar="KEY=VALUE",
+            help="A setting of the scenario (repeatable; as hilrig record --scenario-set).",
+        ),
+    ] = None,
     rate_hz: Annotated[
         float, typer.Option("--rate", help="Frame rate of both streams, Hz (1 to 10000).")
     ] = 1000.0,
@@ -40,10 +48,12 @@ def serve(
 
     from rich.console import Console
 
+    from hilrig.cli.record import key_values
     from hilrig.emulator.rig import EmulatedRig, RigConfig
-    from hilrig.emulator.scenarios import scenario
     from hilrig.errors import HilrigError
+    from hilrig.world.scenarios import scenario
 
+    volunteer_model = scenario(volunteer, key_values(scenario_set or []))
     if not (math.isfinite(rate_hz) and 1.0 <= rate_hz <= 10_000.0):
         raise HilrigError(f"--rate {rate_hz:g}: must be within 1..10000 Hz")
     if port_path is not None:
@@ -51,7 +61,7 @@ def serve(
     # endpoint lines: never wrapped, a path shown as it is (no markup)
     console = Console(soft_wrap=True, highlight=False, markup=False)
     config = RigConfig(rate_hz=rate_hz, seed=seed)
-    rig = EmulatedRig(scenario(volunteer), config=config, port_path=port_path)
+    rig = EmulatedRig(volunteer_model, config=config, port_path=port_path)
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: rig.request_stop())
     endpoints = rig.open()

@@ -34,11 +34,11 @@ from hilrig.drivers.joint_targets.wire import JointTargets
 from hilrig.drivers.robot_state.wire import RobotState
 from hilrig.emulator.ft_emulator import EmulatorConfig, FtEmulator
 from hilrig.emulator.modbus_server import EmulatedModbusServer
-from hilrig.emulator.plant import JointServoPlant
 from hilrig.emulator.robot_state_server import EmulatedRobotStateServer
-from hilrig.emulator.scenarios import Scenario, scenario
 from hilrig.emulator.slots import SlotLoop
 from hilrig.robot import RobotModel
+from hilrig.world.plant import JointServoPlant
+from hilrig.world.scenarios import Scenario, scenario
 
 _NOISE_BLOCK = 1024
 

@@ -101,6 +101,8 @@ class SessionInfo:
     start_monotonic_ns: int
     controller_params: Mapping[str, ParamValue] = field(default_factory=dict)
     software_version: str = __version__
+    scenario: str = ""  # the emulated volunteer ("" on a real rig: a person)
+    scenario_settings: Mapping[str, object] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         validate_subject_id(self.subject_id)
@@ -108,6 +110,12 @@ class SessionInfo:
             value = getattr(self, name)
             if not value or "\n" in value:
                 raise RecordingError(f"session {name} must be one non-empty line, got {value!r}")
+        if not isinstance(self.scenario, str) or "\n" in self.scenario:
+            raise RecordingError(f"session scenario must be one line, got {self.scenario!r}")
+        if not isinstance(self.scenario_settings, Mapping):
+            raise RecordingError(
+                f"session scenario_settings must be a table, got {self.scenario_settings!r}"
+            )
 
     @classmethod
     def starting_now(
@@ -118,6 +126,8 @@ class SessionInfo:
         rig: str,
         controller: str,
         controller_params: Mapping[str, ParamValue] | None = None,
+        scenario: str = "",
+        scenario_settings: Mapping[str, object] | None = None,
     ) -> SessionInfo:
         """A session starting now: both clocks are read back to back."""
         mono = time.monotonic_ns()
@@ -130,6 +140,8 @@ class SessionInfo:
             start_utc_ns=utc,
             start_monotonic_ns=mono,
             controller_params=dict(controller_params or {}),
+            scenario=scenario,
+            scenario_settings=dict(scenario_settings or {}),
         )
 
     @property
@@ -153,6 +165,8 @@ class SessionInfo:
             "controller": self.controller,
             "controller_params": json.dumps(dict(self.controller_params), sort_keys=True),
             "software_version": self.software_version,
+            "scenario": self.scenario,
+            "scenario_settings": json.dumps(dict(self.scenario_settings), sort_keys=True),
         }
 
     @classmethod
@@ -168,6 +182,8 @@ class SessionInfo:
                 start_monotonic_ns=int(record["start_monotonic_ns"]),
                 controller_params=json.loads(record.get("controller_params", "{}")),
                 software_version=record["software_version"],
+                scenario=record.get("scenario", ""),  # absent in files before it was recorded
+                scenario_settings=json.loads(record.get("scenario_settings", "{}")),
             )
         except (KeyError, ValueError) as err:
             raise RecordingError(f"session metadata is incomplete or malformed ({err})") from err

@@ -7,8 +7,12 @@
     [trajectory]                      # the task: a trajectory's name and its builder's options
     name = "waypoints"
     points = [[1.0, 0.0, 0.02, 0.0]]  # [t_s, dx_m, dy_m, dz_m], ...
+    [scenario]                        # the emulated volunteer and its settings
+    name = "hand-contact"
+    stiffness_n_m = 800
+    direction_in_base = [1, 0, 0]
 
-Either table may be left out: the emulated rig needs no endpoints.
+Any table may be left out: the emulated rig needs no endpoints.
 """
 
 from __future__ import annotations
@@ -34,6 +38,8 @@ class RigFile:
     endpoints: RigEndpoints | None = None
     trajectory: str | None = None
     trajectory_options: dict[str, object] = field(default_factory=dict)
+    scenario: str | None = None
+    scenario_settings: dict[str, object] = field(default_factory=dict)
 
 
 def read_rig_file(path: Path) -> RigFile:
@@ -42,18 +48,26 @@ def read_rig_file(path: Path) -> RigFile:
         config = tomllib.loads(path.read_text())
     except (OSError, tomllib.TOMLDecodeError) as err:
         raise HilrigError(f"{path}: cannot read the config ({err})") from err
-    table = config.get("trajectory", {})
-    if not isinstance(table, dict):
-        raise HilrigError(f"{path}: trajectory must be a table ([trajectory] with name = ...)")
-    options = dict(table)
+    options = _table(path, config, "trajectory")
     name = options.pop("name", None)
     if name is not None:
         _check_trajectory(path, str(name), options)
+    settings = _table(path, config, "scenario")
+    scenario = settings.pop("name", None)
     return RigFile(
         endpoints=_endpoints(path, config["endpoints"]) if "endpoints" in config else None,
         trajectory=None if name is None else str(name),
         trajectory_options=options,
+        scenario=None if scenario is None else str(scenario),
+        scenario_settings=settings,
     )
+
+
+def _table(path: Path, config: dict[str, Any], name: str) -> dict[str, object]:
+    table = config.get(name, {})
+    if not isinstance(table, dict):
+        raise HilrigError(f"{path}: {name} must be a table ([{name}] with name = ...)")
+    return dict(table)
 
 
 def _check_trajectory(path: Path, name: str, options: dict[str, object]) -> None:

@@ -20,6 +20,7 @@ from typing import Any
 from hilrig.emulator.rig import EmulatedRig, RigConfig, RigCounters, RigEndpoints
 from hilrig.errors import HilrigError, LinkError
 from hilrig.rig.child import ChildProcess, report
+from hilrig.world.scenarios import Scenario
 
 __all__ = ["FAULTS", "RigCounters", "RigProcess"]
 
@@ -40,7 +41,7 @@ FAULTS = frozenset(
 REPLY_TIMEOUT_S = 10.0
 
 
-def _serve(conn: Connection, scenario: str, config: RigConfig) -> None:
+def _serve(conn: Connection, scenario: str | Scenario, config: RigConfig) -> None:
     """The child: open the rig, report its endpoints, run its slot loop until told to stop or
     the parent is gone, report the final counters."""
     rig = EmulatedRig(scenario, config=config)
@@ -77,7 +78,7 @@ def _serve(conn: Connection, scenario: str, config: RigConfig) -> None:
 class RigProcess:
     """An emulated rig in its own process; ``with RigProcess(...) as endpoints:``."""
 
-    def __init__(self, scenario: str, *, config: RigConfig | None = None) -> None:
+    def __init__(self, scenario: str | Scenario, *, config: RigConfig | None = None) -> None:
         self._child = ChildProcess("hilrig-emulated-rig", "the emulated rig", LinkError)
         self._args = (scenario, config or RigConfig())
         self._lock = threading.Lock()  # one request and its reply at a time

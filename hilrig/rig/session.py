@@ -27,6 +27,7 @@ from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -54,6 +55,7 @@ from hilrig.rig.session_config import SessionConfig
 from hilrig.rig.tick import warm_up
 from hilrig.rig.trajectory import make_trajectory
 from hilrig.robot import RobotModel
+from hilrig.world.scenarios import settings_of
 
 __all__ = ["STARTUP_RING_ROWS", "SessionConfig", "SessionResult", "record_session"]
 STARTUP_RING_ROWS = 16384  # 16 s at 1 kHz: samples read before the recorder has its file open
@@ -138,7 +140,7 @@ def record_session(
         rig = None
         if config.rig is RigKind.EMULATED:
             # the scenario's clock starts with the first tick, however long start-up takes
-            rig = RigProcess(config.scenario, config=RigConfig(scenario_starts_at_open=False))
+            rig = RigProcess(config.volunteer(), config=RigConfig(scenario_starts_at_open=False))
             endpoints = rig.start()
             stack.callback(rig.stop)
             if rig_ready is not None:
@@ -169,6 +171,7 @@ def record_session(
                 rig=config.rig.value,
                 controller=config.loop.law.value,
                 controller_params=config.loop.params_record(),
+                **_volunteer_record(config),
             ),
             {
                 "bias_in_sensor": compensator.bias_in_sensor.tolist(),
@@ -218,6 +221,13 @@ def record_session(
         counters,
         loop.ended_by,
     )
+
+
+def _volunteer_record(config: SessionConfig) -> dict[str, Any]:
+    """The emulated volunteer and its settings for the session record (none on a real rig)."""
+    if config.rig is not RigKind.EMULATED:
+        return {}
+    return {"scenario": config.scenario, "scenario_settings": settings_of(config.volunteer())}
 
 
 def _make_folders(path: Path) -> list[Path]:

@@ -16,7 +16,6 @@ import numpy as np
 
 from hilrig.drivers.ft.gravity import ToolLoad
 from hilrig.emulator.rig import RigEndpoints
-from hilrig.emulator.scenarios import scenario as make_scenario
 from hilrig.errors import HilrigError
 from hilrig.recording import Attachment, validate_subject_id
 from hilrig.rig.config_file import check_recording_path
@@ -24,6 +23,8 @@ from hilrig.rig.kinds import RigKind
 from hilrig.rig.loop import LoopConfig
 from hilrig.rig.trajectory import make_trajectory
 from hilrig.rig.virtual import VirtualInput
+from hilrig.world.scenarios import Scenario
+from hilrig.world.scenarios import scenario as make_scenario
 
 EMULATED_TOOL = ToolLoad(mass_kg=0.5, com_in_sensor_m=(0.0, 0.0, 0.05))
 
@@ -38,6 +39,7 @@ class SessionConfig:
     out: Path
     subject_id: str
     scenario: str = "paper-end-effector"
+    scenario_settings: dict[str, object] = field(default_factory=dict)  # e.g. stiffness_n_m
     rig: RigKind = RigKind.EMULATED
     endpoints: RigEndpoints | None = None
     duration_s: float | None = 20.0
@@ -63,14 +65,19 @@ class SessionConfig:
             raise HilrigError(f"duration {duration} s: must be a finite number of seconds > 0")
 
     def check(self) -> None:
-        """Raise HilrigError (one line) for anything that would fail later: subject, scenario,
-        trajectory and its options, controller parameters, and the output (a new file in a
-        folder that exists, or can be made, and is writable). Nothing is created."""
+        """Raise HilrigError (one line) for anything that would fail later: subject, scenario
+        and its settings, trajectory and its options, controller parameters, and the output (a
+        new file in a folder that exists, or can be made, and is writable). Nothing is
+        created."""
         validate_subject_id(self.subject_id)
-        make_scenario(self.scenario)
+        self.volunteer()
         make_trajectory(self.trajectory, np.eye(4), **self.trajectory_options)
         self.loop.controller()
         check_recording_path(self.out)
+
+    def volunteer(self) -> Scenario:
+        """The emulated volunteer: the scenario with its settings (ParameterError, one line)."""
+        return make_scenario(self.scenario, self.scenario_settings)
 
     def as_json(self) -> str:
         """The configuration as JSON, attached to the recording (the virtual trace summarised;

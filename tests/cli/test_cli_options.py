@@ -5,16 +5,17 @@ from typer.testing import CliRunner
 
 from hilrig.cli import app, options
 from hilrig.control import Law
-from hilrig.emulator.scenarios import SCENARIOS
 from hilrig.rig import RigKind, SessionConfig
 from hilrig.viz import DEFAULT_MAX_POINTS, DEFAULT_MAX_POSES
 from hilrig.viz.sinks import GRPC_PORT, WEB_PORT
+from hilrig.world.scenarios import SCENARIOS, settings_help
 
 
 def test_the_mirrors_are_the_library_names() -> None:
     assert [m.value for m in options.LawOption] == [m.value for m in Law]
     assert all(m.law() is Law(m.value) for m in options.LawOption)
     assert tuple(sorted(SCENARIOS)) == options.SCENARIO_NAMES
+    assert settings_help() == options.SCENARIO_SETTINGS_HELP
     assert (options.GRPC_PORT, options.WEB_PORT) == (GRPC_PORT, WEB_PORT)
     assert (options.DEFAULT_MAX_POINTS, options.DEFAULT_MAX_POSES) == (
         DEFAULT_MAX_POINTS,
@@ -40,6 +41,9 @@ def test_the_mirrors_are_the_library_names() -> None:
                 "[required]",
                 "TOML: [endpoints] of a real rig",
                 "[trajectory] (name = 'waypoints', points = [[t_s, dx_m, dy_m, dz_m], ...]",
+                "[scenario] (name =",
+                "--scenario-set",
+                "KEY=VALUE",
             ],
         ),
         (
@@ -71,3 +75,13 @@ def test_help_shows_options_choices_and_defaults(command: list[str], shown: list
     assert result.exit_code == 0, result.output
     missing = [text for text in shown if text not in result.output]
     assert missing == []
+
+
+def test_record_help_lists_every_scenario_s_settings() -> None:
+    result = CliRunner().invoke(app, ["record", "--help"], env={"COLUMNS": "200"})
+    text = " ".join(line.strip(" │|") for line in result.output.splitlines())
+    flat = " ".join(text.split())
+    for name in SCENARIOS:
+        assert f"{name}:" in flat
+    assert "stiffness_n_m=300 (the hand's stiffness, N/m)" in flat
+    assert "paper-body: period_s=none" in flat

@@ -143,6 +143,26 @@ def record(tmp_path: Path, *args: str, **env: str) -> subprocess.CompletedProces
         (["--out", "afile/new/s.mcap"], "afile/new/s.mcap: afile is not a folder"),
         (["--out", "kept.mcap"], "kept.mcap: already exists; refusing to overwrite it"),
         (["--view-save", "kept.rrd"], "kept.rrd: already exists; refusing to overwrite it"),
+        (
+            ["--scenario", "hand-contact", "--scenario-set", "stiffness_n_m=-1"],
+            "scenario hand-contact: stiffness_n_m -1 must be >= 0",
+        ),
+        (
+            ["--scenario-set", "stiffness"],
+            "--scenario-set 'stiffness': expected KEY=VALUE, e.g. stiffness_n_m=800",
+        ),
+        (
+            ["--scenario-set", "depth_m=0.01"],
+            "scenario paper-end-effector: no setting 'depth_m'; its settings: period_s",
+        ),
+        (
+            ["--config", "soft.toml", "--scenario-set", "depth_m=0.01"],
+            "scenario hand-contact: stiffness_n_m 'soft' is not a number",
+        ),
+        (
+            ["--config", "flat-scenario.toml"],
+            "flat-scenario.toml: scenario must be a table ([scenario] with name = ...)",
+        ),
     ],
 )
 def test_a_bad_input_is_one_line_before_any_file_is_made(
@@ -152,6 +172,10 @@ def test_a_bad_input_is_one_line_before_any_file_is_made(
         '[trajectory]\nname = "waypoints"\npoints = [[1.0, "a", 0.0, 0.0]]\n'
     )
     (tmp_path / "flat.toml").write_text('trajectory = "circle"\n')
+    (tmp_path / "soft.toml").write_text(
+        '[scenario]\nname = "hand-contact"\nstiffness_n_m = "soft"\n'
+    )
+    (tmp_path / "flat-scenario.toml").write_text('scenario = "hand-contact"\n')
     (tmp_path / "afile").write_bytes(b"")
     (tmp_path / "kept.mcap").write_bytes(b"a volunteer's session")
     (tmp_path / "kept.rrd").write_bytes(b"a volunteer's live view")
@@ -233,3 +257,29 @@ def test_a_killed_recorder_ends_the_session_loudly_and_the_file_can_be_recovered
     recover(out, tmp_path / "recovered.mcap")
     logged = load(tmp_path / "recovered.mcap", topics=["/diagnostics/loop"])["/diagnostics/loop"]
     assert 0 < len(logged) <= ticks
+
+
+def test_scenario_settings_drive_the_volunteer_and_are_recorded(tmp_path: Path) -> None:
+    config = tmp_path / "volunteer.toml"
+    config.write_text('[scenario]\nname = "hand-contact"\nstiffness_n_m = 500\nhold_s = 0.5\n')
+    result = record(
+        tmp_path,
+        "--config", str(config),
+        "--scenario-set", "stiffness_n_m=800",  # over the file's 500
+        "--scenario-set", "direction_in_base=1,0,0",
+        "--scenario-set", "start_s=0.2",
+        "--duration", "1.5",
+        "--out", "s.mcap",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    session = inspect(tmp_path / "s.mcap").session_info()
+    assert session is not None and session.scenario == "hand-contact"
+    recorded = session.scenario_settings
+    assert recorded["stiffness_n_m"] == 800.0 and recorded["hold_s"] == 0.5
+    assert recorded["direction_in_base"] == [1.0, 0.0, 0.0]
+    assert recorded["depth_m"] == 0.03  # a default, recorded too
+    # the hand pushed along +x in the base frame, so the controller saw a force along x
+    state = load(tmp_path / "s.mcap", topics=["/controller/state"])["/controller/state"]
+    force = state[["force_0", "force_1", "force_2"]].to_numpy()
+    peak = np.abs(force).max(axis=0)
+    assert peak[0] > 1.0 and peak[0] > 5 * max(peak[1], peak[2])

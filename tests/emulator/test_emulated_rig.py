@@ -9,10 +9,10 @@ from hilrig.drivers.ft.wire import FtSample
 from hilrig.drivers.robot_state.wire import RobotState, RobotStatus
 from hilrig.emulator.probe import RigProbe
 from hilrig.emulator.rig import HOME_Q_RAD, EmulatedRig, RigConfig
-from hilrig.emulator.scenarios import HandContact, PaperBody, PaperEndEffector, scenario
 from hilrig.errors import HilrigError
 from hilrig.paper.profiles import end_effector_force, joint_torque
 from hilrig.robot import RobotModel
+from hilrig.world.scenarios import HandContact, PaperBody, PaperEndEffector, scenario
 
 
 def read_at_least(probe: RigProbe, samples: int, states: int) -> tuple[list, list]:

@@ -4,8 +4,8 @@ import numpy as np
 
 from hilrig.drivers.joint_targets.wire import JointTargets, Mode
 from hilrig.drivers.robot_state.wire import RobotStatus
-from hilrig.emulator.plant import JointServoPlant
 from hilrig.robot.limits import JointLimits
+from hilrig.world.plant import JointServoPlant
 
 LIMITS = JointLimits(
     position_min_rad=(-3.05,) * 6,
