@@ -29,6 +29,7 @@ class Outbox:
 
     def put(self, data: bytes, *, frame: bool = True) -> None:
         """Queue ``data`` (a whole frame unless ``frame`` is False) and write what fits."""
+        self.flush()  # first: a backlog at its limit drains as soon as the reader reads again
         if frame and len(self._pending) + len(data) > self._limit:
             self.frames_dropped += 1
             return

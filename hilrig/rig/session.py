@@ -260,15 +260,17 @@ def _stop_quietly(recorder: RecorderProcess) -> None:
 
 
 def _connect(stack: ExitStack, endpoints: RigEndpoints, feed: RecorderFeed) -> DeviceIO:
-    """Open the three links (no waiting for data: the loop's thread reads from now on)."""
+    """Open the three links (no waiting for data: the loop's thread reads from now on). All
+    three are made before any connects: nothing slow may come between the sensor's first byte
+    and the loop's reads."""
     sensor = FtSerial(endpoints.ft_wrist_port)
-    sensor.connect(first_sample_timeout_s=None)
-    stack.callback(sensor.close)
     robot = RobotStateClient(*endpoints.robot_state)
-    robot.connect(first_frame_timeout_s=None)
-    stack.callback(robot.close)
     # two requests in flight: a reply is read at the next tick, and TCP keeps them in order
     targets = JointTargetsWriter(ModbusEndpoint(*endpoints.modbus), max_in_flight=2)
+    sensor.connect(first_sample_timeout_s=None)
+    stack.callback(sensor.close)
+    robot.connect(first_frame_timeout_s=None)
+    stack.callback(robot.close)
     targets.connect()
     stack.callback(targets.close)
     return DeviceIO(sensor, robot, targets, feed)

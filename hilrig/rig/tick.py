@@ -33,6 +33,8 @@ from hilrig.control import (
     run_compiled,
 )
 from hilrig.drivers.ft.gravity import GravityCompensator
+from hilrig.drivers.joint_targets.frame import RequestFrame
+from hilrig.drivers.joint_targets.wire import Mode, RegisterMap
 from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.rig.clamp_kernels import HOLDING, NON_FINITE, candidate, exceeds, finish
 from hilrig.rig.records import AXES, JOINTS, TICK_DTYPE
@@ -368,9 +370,10 @@ class CompiledTick:
 
 
 def warm_up() -> None:
-    """Load (or compile) the tick's kernels and run them once on a throwaway state built like a
-    session's (read-only trajectory rotation, rows in a shared-memory ring: numba compiles per
-    array type), so that no first-call cost lands on a session's first ticks."""
+    """Load (or compile) the tick's kernels and the Modbus request's, and run them once on a
+    throwaway state built like a session's (rows in a shared-memory ring: numba compiles per
+    array type), so that no first-call cost lands between the devices' first bytes and the
+    session's first ticks (a fresh clone compiles them all here)."""
     model = RobotModel()
     q0 = np.asarray(HOME_Q_RAD, dtype=np.float64)
     controller = make("adaptive", combine((preset("adaptive"), 3), (preset("adaptive-joint"), 6)))
@@ -382,6 +385,7 @@ def warm_up() -> None:
     zeros6 = np.zeros(6)
     flags = SENSOR_OK | ROBOT_OK | COMMAND_OK
     tick.run(flags, zeros6, q0, zeros6, np.zeros(AXES), position, trajectory.rotation)
+    RequestFrame(RegisterMap()).fill(q0, 0, Mode.HOLD)  # the Modbus request's kernels
     ring = Ring.create(RingSpec.unique("warm", TICK_DTYPE, 2))
     try:
         write_row = tick.row_writer(ring.rows, np.zeros(7, dtype=np.int64))
