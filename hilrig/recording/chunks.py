@@ -21,7 +21,7 @@ import numpy.typing as npt
 import zstandard
 
 from hilrig.recording.file_index import ChunkInfo
-from hilrig.recording.mcap_records import RECORD_HEADER, Op
+from hilrig.recording.mcap_records import Op
 from hilrig.recording.parse import (
     MAX_CHUNK_BYTES,
     BadRecordError,
@@ -32,17 +32,6 @@ from hilrig.recording.parse import (
 )
 
 _INDEX_ENTRY = np.dtype([("log", "<u8"), ("offset", "<u8")])
-#: A Message record up to its data: opcode, length, channel, sequence, log and publish time.
-_HEAD = np.dtype(
-    [
-        ("op", "u1"),
-        ("length", "<u8"),
-        ("channel", "<u2"),
-        ("sequence", "<u4"),
-        ("log", "<u8"),
-        ("publish", "<u8"),
-    ]
-)
 BATCH_BYTES = 4 << 20
 
 #: Per channel id: log times (int64 ns) and record offsets in the decompressed chunk.
@@ -252,27 +241,13 @@ def entries_of(
 def _tiles(data: bytes | memoryview, entries: Entries) -> bool:
     if not entries:
         return len(data) == 0
+    from hilrig.recording.tiles import tiles  # numba, loaded only when chunks are read
+
     offsets = np.concatenate([o for _, o in entries.values()])
     times = np.concatenate([t for t, _ in entries.values()])
-    channels = np.concatenate(
-        [np.full(len(o), cid, dtype=np.int64) for cid, (_, o) in entries.items()]
-    )
-    order = np.argsort(offsets, kind="stable")
-    offsets = offsets[order]
-    size = len(data)
-    if len(offsets) == 0 or offsets[0] != 0 or offsets[-1] + _HEAD.itemsize > size:
-        return False
-    buffer = np.frombuffer(data, dtype=np.uint8)
-    heads = buffer[offsets[:, None] + np.arange(_HEAD.itemsize)].view(_HEAD)[:, 0]
-    ends = offsets + RECORD_HEADER.size + heads["length"].astype(np.int64)
-    return bool(
-        (heads["op"] == Op.MESSAGE).all()
-        and (heads["length"] < size).all()
-        and (ends[:-1] == offsets[1:]).all()
-        and ends[-1] == size
-        and (heads["channel"] == channels[order]).all()
-        and (heads["log"].astype(np.int64) == times[order]).all()
-    )
+    starts = np.cumsum([0] + [len(o) for _, o in entries.values()], dtype=np.int64)
+    channels = np.fromiter(entries, dtype=np.int64, count=len(entries))
+    return bool(tiles(np.frombuffer(data, dtype=np.uint8), offsets, times, starts, channels))
 
 
 def _same(a: Entries, b: Entries) -> bool:
