@@ -255,8 +255,10 @@ def test_a_killed_recorder_ends_the_session_loudly_and_the_file_can_be_recovered
     ticks = int(re.search(r"^  (\d+) ticks, ", stdout, re.M).group(1))  # type: ignore[union-attr]
     assert ticks < 10_000
     recover(out, tmp_path / "recovered.mcap")
-    logged = load(tmp_path / "recovered.mcap", topics=["/diagnostics/loop"])["/diagnostics/loop"]
-    assert 0 < len(logged) <= ticks
+    # killed as its first tick ran: on a loaded machine no tick may have reached the disk yet
+    # (the session's end-to-end test kills it 1 s in and counts what was lost)
+    logged = load(tmp_path / "recovered.mcap").get("/diagnostics/loop")
+    assert (0 if logged is None else len(logged)) <= ticks
 
 
 def test_scenario_settings_drive_the_volunteer_and_are_recorded(tmp_path: Path) -> None:
