@@ -112,7 +112,6 @@ def record(
         ),
         session_id=time.strftime("%Y%m%d-%H%M%S"),
     )
-    session.check()  # every mistake, one line, before anything starts
     live = live_view(sink, session) if sink is not None else None
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):

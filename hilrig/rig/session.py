@@ -138,9 +138,12 @@ def record_session(
         recorder.spawn()  # imports while the rig comes up
         stack.callback(_stop_quietly, recorder)  # a session that cannot start: no recorder left
         rig = None
+        volunteer: dict[str, Any] = {}  # the emulated volunteer, for the session record
         if config.rig is RigKind.EMULATED:
+            scenario = config.volunteer()
+            volunteer = {"scenario": config.scenario, "scenario_settings": settings_of(scenario)}
             # the scenario's clock starts with the first tick, however long start-up takes
-            rig = RigProcess(config.volunteer(), config=RigConfig(scenario_starts_at_open=False))
+            rig = RigProcess(scenario, config=RigConfig(scenario_starts_at_open=False))
             endpoints = rig.start()
             stack.callback(rig.stop)
             if rig_ready is not None:
@@ -171,7 +174,7 @@ def record_session(
                 rig=config.rig.value,
                 controller=config.loop.law.value,
                 controller_params=config.loop.params_record(),
-                **_volunteer_record(config),
+                **volunteer,
             ),
             {
                 "bias_in_sensor": compensator.bias_in_sensor.tolist(),
@@ -221,13 +224,6 @@ def record_session(
         counters,
         loop.ended_by,
     )
-
-
-def _volunteer_record(config: SessionConfig) -> dict[str, Any]:
-    """The emulated volunteer and its settings for the session record (none on a real rig)."""
-    if config.rig is not RigKind.EMULATED:
-        return {}
-    return {"scenario": config.scenario, "scenario_settings": settings_of(config.volunteer())}
 
 
 def _make_folders(path: Path) -> list[Path]:
