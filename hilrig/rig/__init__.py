@@ -28,10 +28,8 @@ if TYPE_CHECKING:
     from hilrig.rig.records import AXES, AXIS_NAMES, FT_DTYPE, JOINT_DTYPE, JOINTS, TICK_DTYPE
     from hilrig.rig.rig_process import FAULTS, RigProcess
     from hilrig.rig.rings import Rows
-    from hilrig.rig.safety import SafetyClamp, SafetyConfig
     from hilrig.rig.session import SessionResult, record_session
     from hilrig.rig.session_config import SessionConfig
-    from hilrig.rig.trajectory import Trajectory, make_trajectory
     from hilrig.rig.view_feed import VIEW_RATE_HZ, ViewBatch, ViewCounts, ViewForwarder
     from hilrig.rig.virtual import VirtualInput
 
@@ -46,10 +44,8 @@ _MODULES = {
     "records": ("AXES", "AXIS_NAMES", "FT_DTYPE", "JOINTS", "JOINT_DTYPE", "TICK_DTYPE"),
     "rig_process": ("FAULTS", "RigProcess"),
     "rings": ("Rows",),
-    "safety": ("SafetyClamp", "SafetyConfig"),
     "session": ("SessionResult", "record_session"),
     "session_config": ("SessionConfig",),
-    "trajectory": ("Trajectory", "make_trajectory"),
     "view_feed": ("VIEW_RATE_HZ", "ViewBatch", "ViewCounts", "ViewForwarder"),
     "virtual": ("VirtualInput",),
 }
@@ -78,16 +74,12 @@ __all__ = [
     "RigKind",
     "RigProcess",
     "Rows",
-    "SafetyClamp",
-    "SafetyConfig",
     "SessionConfig",
     "SessionResult",
-    "Trajectory",
     "ViewBatch",
     "ViewCounts",
     "ViewForwarder",
     "VirtualInput",
-    "make_trajectory",
     "record_session",
 ]
 

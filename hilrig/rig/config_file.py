@@ -74,7 +74,7 @@ def _check_trajectory(path: Path, name: str, options: dict[str, object]) -> None
     """Build the trajectory once from a neutral pose: a bad waypoint is named with the file."""
     import numpy as np
 
-    from hilrig.rig.trajectory import make_trajectory
+    from hilrig.tick.trajectory import make_trajectory
 
     try:
         make_trajectory(name, np.eye(4), **options)

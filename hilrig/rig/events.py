@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from hilrig.control import ContactState
 from hilrig.recording.samples import EventKind, EventRecord
-from hilrig.rig.clamp_kernels import Clamp
+from hilrig.tick.clamp_kernels import Clamp
 
 GROUPS = (("end effector", 0), ("joints", 3))  # (name, first axis) of each axis group
 #: What a device's data going stale means, and what limiting a command does (docs/rig.md).

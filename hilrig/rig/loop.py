@@ -8,7 +8,7 @@ leaves within the period in which its sample arrived; if no frame comes for a wh
 the expected one, a fallback tick runs on the deadline (it will hold once inputs are stale).
 
 One tick (docs/rig.md, the path of a force sample): the newest wrist sample and joint state go
-through the compiled tick (:mod:`hilrig.rig.tick`: compensation, base frame, 9-axis controller,
+through the compiled tick (:mod:`hilrig.tick.kernel`: compensation, base frame, 9-axis controller,
 IK, joint offsets, safety clamp), the joint targets leave as a Modbus request without waiting
 for the reply, and the tick row is written into the ring in place. Stale sensor data, a lost
 robot link or a failed Modbus write hold the last safe pose (a controlled stop); a force above
@@ -48,8 +48,9 @@ from hilrig.recording.samples import EventRecord
 from hilrig.rig.device_io import DeviceIO
 from hilrig.rig.events import EventDetector
 from hilrig.rig.loop_figures import LoopStatus, LoopSummary
-from hilrig.rig.safety import SafetyClamp
-from hilrig.rig.tick import (
+from hilrig.rig.virtual import VirtualInput
+from hilrig.robot import RobotModel
+from hilrig.tick.kernel import (
     COMMAND_OK,
     CONTACT_CHANGED,
     FRESH,
@@ -59,9 +60,8 @@ from hilrig.rig.tick import (
     STOP_NOW,
     CompiledTick,
 )
-from hilrig.rig.trajectory import Trajectory
-from hilrig.rig.virtual import VirtualInput
-from hilrig.robot import RobotModel
+from hilrig.tick.safety import SafetyClamp
+from hilrig.tick.trajectory import Trajectory
 from hilrig.timing import realtime_python
 
 COMMAND_FAULT_HOLD_NS = 50_000_000  # after a failed joint-target write, hold this long

@@ -50,11 +50,11 @@ from hilrig.rig.recorder_feed import RecorderFeed
 from hilrig.rig.recorder_process import RecorderProcess
 from hilrig.rig.records import AXIS_NAMES
 from hilrig.rig.rig_process import RigCounters, RigProcess
-from hilrig.rig.safety import SafetyClamp, SafetyConfig
 from hilrig.rig.session_config import SessionConfig
-from hilrig.rig.tick import warm_up
-from hilrig.rig.trajectory import make_trajectory
+from hilrig.rig.warm_up import warm_up
 from hilrig.robot import RobotModel
+from hilrig.tick.safety import SafetyClamp, SafetyConfig
+from hilrig.tick.trajectory import make_trajectory
 from hilrig.world.scenarios import settings_of
 
 __all__ = ["STARTUP_RING_ROWS", "SessionConfig", "SessionResult", "record_session"]

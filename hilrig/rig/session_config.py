@@ -21,8 +21,8 @@ from hilrig.recording import Attachment, validate_subject_id
 from hilrig.rig.config_file import check_recording_path
 from hilrig.rig.kinds import RigKind
 from hilrig.rig.loop import LoopConfig
-from hilrig.rig.trajectory import make_trajectory
 from hilrig.rig.virtual import VirtualInput
+from hilrig.tick.trajectory import make_trajectory
 from hilrig.world.scenarios import Scenario
 from hilrig.world.scenarios import scenario as make_scenario
 

@@ -1,8 +1,8 @@
 """Events from per-tick states: emitted on changes only, clamp flags named in words."""
 
 from hilrig.recording.samples import EventKind, EventRecord
-from hilrig.rig.clamp_kernels import Clamp
 from hilrig.rig.events import EventDetector, clamp_names
+from hilrig.tick.clamp_kernels import Clamp
 
 
 def test_every_clamp_flag_has_its_words_in_bit_order() -> None:

@@ -10,9 +10,16 @@ from numpy.typing import NDArray
 
 from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.errors import ParameterError
-from hilrig.rig import SafetyClamp, SafetyConfig, Trajectory, make_trajectory
-from hilrig.rig.trajectory import TRAJECTORIES, Circle, minimum_jerk, ramped_time_s
 from hilrig.robot import RobotModel
+from hilrig.tick.safety import SafetyClamp, SafetyConfig
+from hilrig.tick.trajectory import (
+    TRAJECTORIES,
+    Circle,
+    Trajectory,
+    make_trajectory,
+    minimum_jerk,
+    ramped_time_s,
+)
 
 HOME = np.array(HOME_Q_RAD)
 DT = 0.001

@@ -54,7 +54,8 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from hilrig.errors import ParameterError
-from hilrig.rig.clamp_kernels import (
+from hilrig.robot import AUBO_I5_LIMITS, FLANGE_FRAME, JOINTS, JointLimits, RobotModel
+from hilrig.tick.clamp_kernels import (
     CAND_Q,
     HI,
     HOLDING,
@@ -68,7 +69,6 @@ from hilrig.rig.clamp_kernels import (
     exceeds,
     finish,
 )
-from hilrig.robot import AUBO_I5_LIMITS, FLANGE_FRAME, JOINTS, JointLimits, RobotModel
 
 __all__ = ["Clamp", "SafetyClamp", "SafetyConfig", "axis_reach_m"]
 
@@ -204,7 +204,7 @@ class SafetyClamp:
 
     def kernel_arrays(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """The packed (limits (5, 6), box (2, 3), state (6, 6)) the kernels work on: the clamp's
-        own arrays, for a compiled caller that takes over its ticks (``hilrig.rig.tick``)."""
+        own arrays, for a compiled caller that takes over its ticks (``hilrig.tick.kernel``)."""
         return self._limits, self._box, self._state
 
     @property

@@ -1,7 +1,7 @@
 """The tick's row: the compiled tick's results written into the recorder ring's slot in place.
 
 The row's layout is ``TICK_DTYPE`` (``hilrig/rig/records.py``, from the recording schema); the
-loop calls this through :meth:`hilrig.rig.tick.CompiledTick.row_writer` (bound: no dispatch).
+loop calls this through :meth:`hilrig.tick.kernel.CompiledTick.row_writer` (bound: no dispatch).
 """
 
 from __future__ import annotations
@@ -12,7 +12,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from hilrig.rig.records import AXES, JOINTS
+from hilrig.recording.schema import AXES
+from hilrig.robot import JOINTS
 
 # The compiled tick's ``work`` vector (float64): offsets of its parts.
 W_FRESH, W_FORCE, W_WRENCH, W_MOMENT, W_GRAVITY_S = 0, 9, 18, 24, 27

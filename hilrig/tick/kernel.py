@@ -27,20 +27,14 @@ from numpy.typing import NDArray
 from hilrig.control import (
     AdmittanceController,
     KernelArrays,
-    combine,
-    make,
-    preset,
     run_compiled,
 )
 from hilrig.drivers.ft.gravity import GravityCompensator
-from hilrig.drivers.joint_targets.frame import RequestFrame
-from hilrig.drivers.joint_targets.wire import Mode, RegisterMap
-from hilrig.emulator.rig import HOME_Q_RAD
-from hilrig.rig.clamp_kernels import HOLDING, NON_FINITE, candidate, exceeds, finish
-from hilrig.rig.records import AXES, JOINTS, TICK_DTYPE
-from hilrig.rig.rings import Ring, RingSpec
-from hilrig.rig.safety import SafetyClamp, SafetyConfig
-from hilrig.rig.tick_row import (
+from hilrig.recording.schema import AXES
+from hilrig.robot import JOINTS, RobotModel
+from hilrig.robot.kinematics import CompiledChain, fk_into, ik_into, ik_work
+from hilrig.tick.clamp_kernels import HOLDING, NON_FINITE, candidate, exceeds, finish
+from hilrig.tick.row import (
     W_FORCE,
     W_FRESH,
     W_GRAVITY_S,
@@ -52,9 +46,7 @@ from hilrig.rig.tick_row import (
     WORK_SIZE,
     fill_tick_row,
 )
-from hilrig.rig.trajectory import make_trajectory
-from hilrig.robot import RobotModel
-from hilrig.robot.kinematics import CompiledChain, fk_into, ik_into, ik_work
+from hilrig.tick.safety import SafetyClamp
 from hilrig.timing import bound_kernel
 
 # Bits of the kernel's input flags and result (besides the clamp's flags in the low byte).
@@ -369,31 +361,4 @@ class CompiledTick:
         )
 
 
-def warm_up() -> None:
-    """Load (or compile) the tick's kernels and the Modbus request's, and run them once on a
-    throwaway state built like a session's (rows in a shared-memory ring: numba compiles per
-    array type), so that no first-call cost lands between the devices' first bytes and the
-    session's first ticks (a fresh clone compiles them all here)."""
-    model = RobotModel()
-    q0 = np.asarray(HOME_Q_RAD, dtype=np.float64)
-    controller = make("adaptive", combine((preset("adaptive"), 3), (preset("adaptive-joint"), 6)))
-    clamp = SafetyClamp(SafetyConfig(), model, q0)
-    tick = CompiledTick.build(controller, model, clamp, GravityCompensator(), q0, 0.001)
-    trajectory = make_trajectory("hold", model.fk(q0))
-    position = np.zeros(3)
-    trajectory.desired(0.0, position)
-    zeros6 = np.zeros(6)
-    flags = SENSOR_OK | ROBOT_OK | COMMAND_OK
-    tick.run(flags, zeros6, q0, zeros6, np.zeros(AXES), position, trajectory.rotation)
-    RequestFrame(RegisterMap()).fill(q0, 0, Mode.HOLD)  # the Modbus request's kernels
-    ring = Ring.create(RingSpec.unique("warm", TICK_DTYPE, 2))
-    try:
-        write_row = tick.row_writer(ring.rows, np.zeros(7, dtype=np.int64))
-        write_row(0)
-        del write_row  # it holds the ring's rows, which must be released before unmapping
-    finally:
-        ring.unlink()
-        ring.close()
-
-
-__all__ = ["CompiledTick", "TickInputs", "fill_tick_row", "tick_kernel", "warm_up"]
+__all__ = ["CompiledTick", "TickInputs", "fill_tick_row", "tick_kernel"]

@@ -10,9 +10,8 @@ from numpy.typing import NDArray
 
 from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.errors import ParameterError
-from hilrig.rig import SafetyClamp, SafetyConfig
-from hilrig.rig.safety import Clamp, axis_reach_m
 from hilrig.robot import AUBO_I5_LIMITS, JointLimits, RobotModel
+from hilrig.tick.safety import Clamp, SafetyClamp, SafetyConfig, axis_reach_m
 
 HOME = np.array(HOME_Q_RAD)
 DT = 0.001

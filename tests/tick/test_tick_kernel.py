@@ -20,11 +20,11 @@ from numpy.typing import NDArray
 from hilrig.drivers.ft.gravity import GravityCompensator, ToolLoad
 from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.recording import load
-from hilrig.rig.clamp_kernels import HOLDING
 from hilrig.rig.loop import LoopConfig
 from hilrig.rig.records import TICK_DTYPE
-from hilrig.rig.safety import SafetyClamp, SafetyConfig
-from hilrig.rig.tick import (
+from hilrig.robot import RobotModel
+from hilrig.tick.clamp_kernels import HOLDING
+from hilrig.tick.kernel import (
     COMMAND_OK,
     CONTACT_CHANGED,
     FRESH,
@@ -34,8 +34,8 @@ from hilrig.rig.tick import (
     STOP_NOW,
     CompiledTick,
 )
-from hilrig.rig.trajectory import make_trajectory
-from hilrig.robot import RobotModel
+from hilrig.tick.safety import SafetyClamp, SafetyConfig
+from hilrig.tick.trajectory import make_trajectory
 
 MODEL = RobotModel()
 EXAMPLE = Path(__file__).parents[2] / "recordings" / "example-paper-end-effector.mcap"

@@ -1,0 +1,44 @@
+"""Numba's first-call costs paid before a session's devices talk (see :func:`warm_up`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hilrig.control import combine, make, preset
+from hilrig.drivers.ft.gravity import GravityCompensator
+from hilrig.drivers.joint_targets.frame import RequestFrame
+from hilrig.drivers.joint_targets.wire import Mode, RegisterMap
+from hilrig.emulator.rig import HOME_Q_RAD
+from hilrig.rig.records import AXES, TICK_DTYPE
+from hilrig.rig.rings import Ring, RingSpec
+from hilrig.robot import RobotModel
+from hilrig.tick.kernel import COMMAND_OK, ROBOT_OK, SENSOR_OK, CompiledTick
+from hilrig.tick.safety import SafetyClamp, SafetyConfig
+from hilrig.tick.trajectory import make_trajectory
+
+
+def warm_up() -> None:
+    """Load (or compile) the tick's kernels and the Modbus request's, and run them once on a
+    throwaway state built like a session's (rows in a shared-memory ring: numba compiles per
+    array type), so that no first-call cost lands between the devices' first bytes and the
+    session's first ticks (a fresh clone compiles them all here)."""
+    model = RobotModel()
+    q0 = np.asarray(HOME_Q_RAD, dtype=np.float64)
+    controller = make("adaptive", combine((preset("adaptive"), 3), (preset("adaptive-joint"), 6)))
+    clamp = SafetyClamp(SafetyConfig(), model, q0)
+    tick = CompiledTick.build(controller, model, clamp, GravityCompensator(), q0, 0.001)
+    trajectory = make_trajectory("hold", model.fk(q0))
+    position = np.zeros(3)
+    trajectory.desired(0.0, position)
+    zeros6 = np.zeros(6)
+    flags = SENSOR_OK | ROBOT_OK | COMMAND_OK
+    tick.run(flags, zeros6, q0, zeros6, np.zeros(AXES), position, trajectory.rotation)
+    RequestFrame(RegisterMap()).fill(q0, 0, Mode.HOLD)  # the Modbus request's kernels
+    ring = Ring.create(RingSpec.unique("warm", TICK_DTYPE, 2))
+    try:
+        write_row = tick.row_writer(ring.rows, np.zeros(7, dtype=np.int64))
+        write_row(0)
+        del write_row  # it holds the ring's rows, which must be released before unmapping
+    finally:
+        ring.unlink()
+        ring.close()
