@@ -233,10 +233,13 @@ class CompiledTick:
     step: Callable[[int], int] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        self.step = bound_kernel(tick_kernel, *self.kernel_args(), last=(0,))
+
+    def kernel_args(self) -> tuple[NDArray[np.generic], ...]:
+        """The arrays :func:`tick_kernel` takes, in order (all but the flags)."""
         i, k, chain = self.inputs, self.arrays, self.chain
         limits, box, state = self.clamp_arrays
-        self.step = bound_kernel(
-            tick_kernel,
+        return (
             i.raw_wrench,
             i.q_measured,
             i.torque_measured,
@@ -262,7 +265,6 @@ class CompiledTick:
             self.ik_work,
             self.poses,
             self.counters,
-            last=(0,),
         )
 
     @classmethod

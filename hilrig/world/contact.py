@@ -12,9 +12,10 @@ between ``t_full`` and ``t_back``, withdraw at ``v_out``) and pushes on the pene
 - force source: ``f(t)`` as recorded, whatever the robot does (the paper's scripted profiles).
 
 :func:`fit_contact` fits both mechanics by least squares (``scipy.optimize.least_squares``)
-over the contact phase and keeps the one with the smaller residual; when the robot's motion
-explains under ``SOURCE_SHARE`` of the force (the RMS change of the fitted force had the tool
-not moved, over the force's spread), the body is a force source. The fit's R^2 and RMS residual
+over the contact phase (the run of samples above ``ONSET_SHARE`` of the peak around it) and
+keeps the one with the smaller residual; when that fit is good (R^2 at least ``MIN_R2``) and the
+robot's motion explains under ``SOURCE_SHARE`` of the force (the RMS change of the fitted force
+had the tool not moved, over the force's spread), the body is a force source. The fit's R^2 and RMS residual
 (N) come with it; :meth:`ContactFit.check` refuses a prediction from a poor fit in one line.
 """
 
@@ -118,10 +119,13 @@ class ContactFit:
             )
 
 
-def fit_contact(t_s: Vector, force_base_n: Vector, tool_base_m: Vector) -> ContactFit:
+def fit_contact(
+    t_s: Vector, force_base_n: Vector, tool_base_m: Vector, *, mechanics: Mechanics | None = None
+) -> ContactFit:
     """Fit the body one collision touched, from its force (n, 3) N and the tool's position
-    (n, 3) m in the base frame at times ``t_s`` (n,) s, covering the collision. Raises
-    ParameterError (one line) when there is no contact phase to fit."""
+    (n, 3) m in the base frame at times ``t_s`` (n,) s, covering the collision. ``mechanics``
+    asks for one model (a force source is then not looked for); None fits both and keeps the
+    better. Raises ParameterError (one line) when there is no contact phase to fit."""
     t_s = np.asarray(t_s, dtype=np.float64)
     force = np.asarray(force_base_n, dtype=np.float64)
     tool = np.asarray(tool_base_m, dtype=np.float64)
@@ -129,8 +133,13 @@ def fit_contact(t_s: Vector, force_base_n: Vector, tool_base_m: Vector) -> Conta
     peak = float(magnitude.max(initial=0.0))
     if not (len(t_s) >= 10 and math.isfinite(peak) and peak > 0.0):
         raise ParameterError("no contact force to fit a contact model to")
-    phase = np.flatnonzero(magnitude > ONSET_SHARE * peak)
-    on, off = int(phase[0]), int(phase[-1]) + 1
+    # the contact phase: the run of samples above ONSET_SHARE of the peak around the peak
+    above = magnitude > ONSET_SHARE * peak
+    at = int(np.argmax(magnitude))
+    below_before = np.flatnonzero(~above[:at])
+    below_after = np.flatnonzero(~above[at:])
+    on = int(below_before[-1]) + 1 if len(below_before) else 0
+    off = at + int(below_after[0]) if len(below_after) else len(t_s)
     mean = force[on:off].mean(axis=0)
     u = mean / np.linalg.norm(mean)
     # fitted with a margin of a tenth of the phase each side: no force must be made there
@@ -143,14 +152,17 @@ def fit_contact(t_s: Vector, force_base_n: Vector, tool_base_m: Vector) -> Conta
     direction = (float(u[0]), float(u[1]), float(u[2]))
     within = slice(on - lo, off - lo)
     bounds = (float(t_s[on]), float(t_s[off - 1]), float(y[within.start]))
-    fits = [_fit(kind, direction, t, f, y, y_rate, bounds) for kind in _MECHANICS]
+    if mechanics is Mechanics.FORCE_SOURCE:
+        return ContactFit(ContactModel(mechanics, direction), 1.0, 0.0, peak, 0.0, *bounds[:2])
+    kinds = _MECHANICS if mechanics is None else (mechanics,)
+    fits = [_fit(kind, direction, t, f, y, y_rate, bounds) for kind in kinds]
     model, residual = min(fits, key=lambda fit: float(np.sum(fit[1] ** 2)))
     inside, f_in = residual[within], f[within]
     total = float(np.sum((f_in - f_in.mean()) ** 2))
     r2 = 1.0 - float(np.sum(inside**2)) / total if total > 0 else 0.0
     rms = float(np.sqrt(np.mean(inside**2)))
     share = _motion_share(model, t[within], f_in, y[within], y_rate[within])
-    if share < SOURCE_SHARE:
+    if share < SOURCE_SHARE and mechanics is None and r2 >= MIN_R2:
         model = ContactModel(Mechanics.FORCE_SOURCE, direction)
         residual = np.zeros_like(f)
         r2, rms = 1.0, 0.0

@@ -25,7 +25,7 @@ Vector = NDArray[np.float64]
 
 
 @njit(cache=True)
-def _integrate(
+def integrate(
     q: Vector,
     qd: Vector,
     qdd: Vector,
@@ -55,6 +55,19 @@ def _integrate(
             qdd[j] = acc
 
 
+def servo_limits(limits: JointLimits) -> NDArray[np.float64]:
+    """``limits`` as the servo kernel takes them (rows q_min, q_max, qd_max, qdd_max)."""
+    return np.array(
+        [
+            limits.lower_rad(),
+            limits.upper_rad(),
+            limits.velocity_max_rad_s,
+            limits.acceleration_max_rad_s2,
+        ],
+        dtype=np.float64,
+    )
+
+
 class JointServoPlant:
     """Six joint servos integrated in fixed sub-steps of ``substep_s`` up to each ``advance``."""
 
@@ -67,15 +80,7 @@ class JointServoPlant:
         watchdog_s: float = 0.05,
         substep_s: float = 0.0005,
     ) -> None:
-        self._limits = np.array(
-            [
-                limits.lower_rad(),
-                limits.upper_rad(),
-                limits.velocity_max_rad_s,
-                limits.acceleration_max_rad_s2,
-            ],
-            dtype=np.float64,
-        )
+        self._limits = servo_limits(limits)
         self._q = np.zeros(JOINTS) if q0_rad is None else np.array(q0_rad, dtype=np.float64)
         self._qd = np.zeros(JOINTS)
         self._qdd = np.zeros(JOINTS)
@@ -92,7 +97,7 @@ class JointServoPlant:
         self._was_tracking = False
         self.targets_received = 0
         self.watchdog_trips = 0
-        self._integrate(hold=True, steps=0)  # load (or compile) the kernel now, not in a slot
+        self._step(hold=True, steps=0)  # load (or compile) the kernel now, not in a slot
 
     def set_targets(self, targets: JointTargets, now_ns: int) -> None:
         """Take one Modbus write; targets are clamped to the position limits."""
@@ -125,11 +130,11 @@ class JointServoPlant:
         if steps <= 0:
             return
         # holding servos track the current position: the arm decelerates and stays
-        self._integrate(hold=not tracking, steps=min(steps, MAX_SUBSTEPS))
+        self._step(hold=not tracking, steps=min(steps, MAX_SUBSTEPS))
         self._t_ns += steps * self._substep_ns
 
-    def _integrate(self, *, hold: bool, steps: int) -> None:
-        _integrate(
+    def _step(self, *, hold: bool, steps: int) -> None:
+        integrate(
             self._q,
             self._qd,
             self._qdd,
