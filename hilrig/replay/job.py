@@ -23,13 +23,18 @@ import pandas as pd
 
 from hilrig.errors import ReplayError
 from hilrig.outputs import new_files
+from hilrig.replay.counterfactual import closed_loop
 from hilrig.replay.engine import Progress, check_table_size, replay
 from hilrig.replay.inputs import MCAP_SUFFIXES as INPUT_MCAP_SUFFIXES
-from hilrig.replay.inputs import PathLike, load_trace
+from hilrig.replay.inputs import PathLike, load_trace, session_index
 from hilrig.replay.outputs import MCAP_SUFFIXES, PARQUET_SUFFIXES, mcap_into, parquet_into
 from hilrig.replay.results import Run, peak_offsets
+from hilrig.replay.session_world import load_world
 from hilrig.replay.specs import ControllerSpec
 from hilrig.replay.trace import ForceTrace
+from hilrig.replay.verify import recorded_controller
+from hilrig.robot import RobotModel
+from hilrig.world.contact import Mechanics
 
 #: What ``--out`` may name, by suffix.
 OUTPUT_SUFFIXES = PARQUET_SUFFIXES + MCAP_SUFFIXES
@@ -96,6 +101,44 @@ def replay_file(
     check_table_size(trace, len(specs))
     runs = [Run.from_spec(spec, trace.axis_names) for spec in specs]
     return Replayed(trace, runs, replay(trace, runs, jobs=jobs, progress=progress))
+
+
+def closed_replay_file(
+    path: PathLike,
+    specs: Sequence[ControllerSpec],
+    *,
+    mechanics: Mechanics | None = None,
+    progress: Progress | None = None,
+) -> Replayed:
+    """The recording ``path`` replayed through ``specs`` closed loop
+    (:mod:`hilrig.replay.counterfactual`): its world fitted (``mechanics`` forces one contact
+    model; None: the better fit), the recorded controller re-simulated, then each run. The
+    table's ``hilrig.input`` holds ``closed_loop`` (models, fits, reproduction error).
+    ``progress`` follows the phases ``fit`` and ``replay`` (in runs). Raises ReplayError (one
+    line) for an input that is not a recording of the live loop or a collision too poorly fitted
+    to predict from."""
+    p = Path(path)
+    if p.suffix.lower() not in INPUT_MCAP_SUFFIXES:
+        raise ReplayError(
+            f"{p}: --closed-loop needs a recorded session (.mcap): the contact is fitted from "
+            "the recorded force and the robot's measured motion"
+        )
+    if progress is not None:
+        progress("fit", 0, 1)
+    model = RobotModel()
+    world = load_world(p, model, mechanics=mechanics)
+    if progress is not None:
+        progress("fit", 1, 1)
+    index = session_index(p)
+    law, params, _ = recorded_controller(p, index, world.trace.axis_names)
+    runs = [Run.from_spec(spec, world.trace.axis_names) for spec in specs]
+    table, _ = closed_loop(
+        world,
+        runs,
+        Run("recorded", law, params),
+        progress=None if progress is None else lambda d, t: progress("replay", d, t),
+    )
+    return Replayed(world.trace, runs, table)
 
 
 def write_outputs(

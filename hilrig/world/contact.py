@@ -15,8 +15,9 @@ between ``t_full`` and ``t_back``, withdraw at ``v_out``) and pushes on the pene
 over the contact phase (the run of samples above ``ONSET_SHARE`` of the peak around it) and
 keeps the one with the smaller residual; when that fit is good (R^2 at least ``MIN_R2``) and the
 robot's motion explains under ``SOURCE_SHARE`` of the force (the RMS change of the fitted force
-had the tool not moved, over the force's spread), the body is a force source. The fit's R^2 and RMS residual
-(N) come with it; :meth:`ContactFit.check` refuses a prediction from a poor fit in one line.
+had the tool not moved, over the force's spread), the body is a force source. The fit's R^2
+and RMS residual (N) come with it; :meth:`ContactFit.check` refuses a prediction from a poor
+fit in one line.
 """
 
 from __future__ import annotations
