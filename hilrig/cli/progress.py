@@ -17,7 +17,13 @@ from rich.progress import (
 )
 
 #: What each phase of a replay is called on the bar.
-PHASES = {"load": "reading chunks", "replay": "replaying ticks", "write": "writing ticks"}
+PHASES = {
+    "load": "reading chunks",
+    "replay": "replaying ticks",
+    "write": "writing ticks",
+    "fit": "fitting the world",
+    "closed": "closed-loop runs",
+}
 #: Least seconds between two redraws.
 REDRAW_S = 0.1
 

@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from rich.table import Table
 
     from hilrig.replay.job import Replayed
+    from hilrig.world.contact import Mechanics
 
 #: Inputs at least this large get a progress bar.
 LONG_INPUT_BYTES = 16 << 20
@@ -79,6 +80,25 @@ def replay_command(
         int | None,
         typer.Option("--jobs", "-j", min=1, help="Processes (default: chosen by size)."),
     ] = None,
+    closed_loop: Annotated[
+        bool,
+        typer.Option(
+            "--closed-loop",
+            help="Predict the force each controller would have met (a recorded session only): "
+            "fit each collision's contact and the arm's response, check that re-simulating the "
+            "recorded controller reproduces its force, then simulate each controller with them "
+            "(force_<axis> is the predicted force). Default: open loop, the recorded force "
+            "replayed as it is whatever each controller does.",
+        ),
+    ] = False,
+    contact_model: Annotated[
+        str,
+        typer.Option(
+            "--contact-model",
+            help="With --closed-loop: auto (the better fit; a force the robot's motion does "
+            "not explain is a force source), spring-damper, hunt-crossley or force-source.",
+        ),
+    ] = "auto",
     rig: Annotated[
         RigKind | None,
         typer.Option(
@@ -120,6 +140,12 @@ def replay_command(
             f"{', '.join(given)}: only for --rig (playing FILE into a live session); "
             "an offline replay or --verify takes the whole input"
         )
+    mechanics = _mechanics(contact_model, closed_loop)
+    if closed_loop and (check or rig is not None or resample or jobs):
+        raise ReplayError(
+            "--closed-loop simulates controllers offline on a recorded session: it takes no "
+            "--verify, --rig, --resample or --jobs"
+        )
     if check:
         if controller or setting or sweep or out or resample or jobs or rig is not None:
             raise ReplayError(
@@ -145,7 +171,24 @@ def replay_command(
             resample=resample,
             jobs=jobs,
             long_input=long_input,
+            closed=(closed_loop, mechanics),
         )
+
+
+def _mechanics(name: str, closed_loop: bool) -> Mechanics | None:
+    """--contact-model as a Mechanics (None: auto); refused without --closed-loop."""
+    from hilrig.errors import ReplayError
+    from hilrig.world.contact import Mechanics
+
+    if name != "auto" and not closed_loop:
+        raise ReplayError(f"--contact-model {name}: only with --closed-loop")
+    if name == "auto":
+        return None
+    try:
+        return Mechanics(name)
+    except ValueError:
+        known = ", ".join(["auto", *(m.value for m in Mechanics)])
+        raise ReplayError(f"--contact-model {name!r}: unknown; known: {known}") from None
 
 
 def _verify(file: Path, console: Console, errors: Console, *, long_input: bool) -> None:
@@ -236,23 +279,40 @@ def _offline(
     resample: bool,
     jobs: int | None,
     long_input: bool,
+    closed: tuple[bool, Mechanics | None],
 ) -> None:
-    """FILE's trace through the --controller, --set and --sweep runs, written to --out."""
+    """FILE's trace through the --controller, --set and --sweep runs, written to --out; closed
+    loop with ``closed`` (on, contact model)."""
     from rich.text import Text
 
+    from hilrig.cli.closed_loop import closed_summary
     from hilrig.cli.progress import phase_bar
-    from hilrig.replay.job import replay_file, replay_outputs, write_outputs
+    from hilrig.replay.job import closed_replay_file, replay_file, replay_outputs, write_outputs
     from hilrig.replay.specs import parse_specs
 
     specs = parse_specs(*spec_options)  # the size of sweeps is refused here, before any work
-    with replay_outputs(out) as outputs, phase_bar(errors, enabled=long_input) as progress:
-        replayed = replay_file(file, specs, resample=resample, jobs=jobs, progress=progress)
+    closed_loop, mechanics = closed
+    bar = long_input or closed_loop
+    with replay_outputs(out) as outputs, phase_bar(errors, enabled=bar) as progress:
+        if closed_loop:
+            replayed = closed_replay_file(file, specs, mechanics=mechanics, progress=progress)
+        else:
+            replayed = replay_file(file, specs, resample=resample, jobs=jobs, progress=progress)
         for note in replayed.trace.notes:
             errors.print(Text.assemble(("note: ", "yellow"), note))
         write_outputs(replayed, outputs, progress=progress)
     for path in out:  # all of them in place, or none
         console.print(f"wrote {path}")
     console.print(_summary(replayed))
+    if closed_loop:
+        for line in closed_summary(replayed):
+            console.print(line, soft_wrap=True)
+    else:
+        console.print(
+            "open loop: every controller met the recorded force as it was (a person is not a "
+            "force source: --closed-loop predicts the force each would have met)",
+            soft_wrap=True,
+        )
 
 
 def _summary(replayed: Replayed) -> Table:

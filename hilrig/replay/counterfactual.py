@@ -213,7 +213,7 @@ def closed_loop_record(
                 "surface": None if motion is None else vars(motion),
                 "r2": fit.r2,
                 "rms_n": fit.rms_n,
-                "motion_share": fit.motion_share,
+                "motion_gain": fit.motion_gain,
                 "recorded_peak_n": recorded.peak_n,
                 "recorded_impulse_n_s": recorded.impulse_n_s,
                 "reproduced_peak_n": again.peak_n,

@@ -114,7 +114,7 @@ def closed_replay_file(
     (:mod:`hilrig.replay.counterfactual`): its world fitted (``mechanics`` forces one contact
     model; None: the better fit), the recorded controller re-simulated, then each run. The
     table's ``hilrig.input`` holds ``closed_loop`` (models, fits, reproduction error).
-    ``progress`` follows the phases ``fit`` and ``replay`` (in runs). Raises ReplayError (one
+    ``progress`` follows the phases ``fit`` and ``closed`` (in runs). Raises ReplayError (one
     line) for an input that is not a recording of the live loop or a collision too poorly fitted
     to predict from."""
     p = Path(path)
@@ -136,7 +136,7 @@ def closed_replay_file(
         world,
         runs,
         Run("recorded", law, params),
-        progress=None if progress is None else lambda d, t: progress("replay", d, t),
+        progress=None if progress is None else lambda d, t: progress("closed", d, t),
     )
     return Replayed(world.trace, runs, table)
 

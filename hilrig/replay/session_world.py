@@ -3,12 +3,13 @@ model (:func:`hilrig.world.contact.fit_contact`), the arm's response to its comm
 (:func:`hilrig.world.response.fit_response`), and the loop's recorded inputs the closed-loop
 replay runs on (tick times, controller input, desired pose, start joints).
 
-A collision is a run of ticks whose Cartesian controller input exceeds ``EVENT_SHARE`` of the
-session's peak (and ``EVENT_MIN_N``), runs closer than ``EVENT_MERGE_S`` merged, each widened by
-``EVENT_PAD_S`` (at most to the middle between two collisions). The tool's position is the
-forward kinematics of the joint state the tick used (the newest at or before it); the contact
-point is where the force's line passes nearest the sensor's origin (from the recorded moment:
-``r = F x M / |F|^2``), its median over the contact phase, in the sensor frame.
+A collision is a run of ticks whose Cartesian controller input exceeds ``EVENT_LOW_SHARE`` of
+the session's peak (and ``EVENT_MIN_N``) and somewhere ``EVENT_SHARE`` of it (a hysteresis: a
+yielding robot may let the force of one collision fall low before it ends), runs closer than
+``EVENT_MERGE_S`` merged, each widened by ``EVENT_PAD_S`` (at most to the middle between two).
+The tool's position is the forward kinematics of the joint states interpolated to the tick; the
+contact point is where the force's line passes nearest the sensor's origin (from the recorded
+moment: ``r = F x M / |F|^2``), its median over the contact phase, in the sensor frame.
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ from hilrig.world.contact import ContactFit, Mechanics, fit_contact
 from hilrig.world.response import EMULATED_BANDWIDTH_RAD_S, ServoResponse, fit_response
 
 EVENT_SHARE = 0.1
-EVENT_MIN_N = 1.0
+EVENT_LOW_SHARE = 0.02
+EVENT_MIN_N = 0.5
 EVENT_MERGE_S = 0.2
 EVENT_PAD_S = 0.3
 
@@ -170,16 +172,17 @@ def collision_windows(t_s: Array, force_n: Array) -> list[tuple[int, int]]:
     """The ticks ``[start, stop)`` of each collision in a Cartesian force (n, 3) (module doc)."""
     magnitude = np.linalg.norm(force_n, axis=1)
     peak = float(magnitude.max(initial=0.0))
-    threshold = max(EVENT_SHARE * peak, EVENT_MIN_N)
-    above = np.flatnonzero(magnitude > threshold)
-    if len(above) == 0:
+    high = max(EVENT_SHARE * peak, EVENT_MIN_N)
+    above = np.flatnonzero(magnitude > max(EVENT_LOW_SHARE * peak, EVENT_MIN_N))
+    if len(above) == 0 or peak <= high:
         return []
-    runs: list[list[int]] = [[int(above[0]), int(above[0]) + 1]]
+    merged: list[list[int]] = [[int(above[0]), int(above[0]) + 1]]
     for k in above[1:]:
-        if t_s[k] - t_s[runs[-1][1] - 1] <= EVENT_MERGE_S:
-            runs[-1][1] = int(k) + 1
+        if t_s[k] - t_s[merged[-1][1] - 1] <= EVENT_MERGE_S:
+            merged[-1][1] = int(k) + 1
         else:
-            runs.append([int(k), int(k) + 1])
+            merged.append([int(k), int(k) + 1])
+    runs = [run for run in merged if magnitude[run[0] : run[1]].max() > high]
     windows = []
     for i, (start, stop) in enumerate(runs):
         low = t_s[start] - EVENT_PAD_S

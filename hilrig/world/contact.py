@@ -13,9 +13,12 @@ between ``t_full`` and ``t_back``, withdraw at ``v_out``) and pushes on the pene
 
 :func:`fit_contact` fits both mechanics by least squares (``scipy.optimize.least_squares``)
 over the contact phase (the run of samples above ``ONSET_SHARE`` of the peak around it) and
-keeps the one with the smaller residual; when that fit is good (R^2 at least ``MIN_R2``) and the
-robot's motion explains under ``SOURCE_SHARE`` of the force (the RMS change of the fitted force
-had the tool not moved, over the force's spread), the body is a force source. The fit's R^2
+keeps the one with the smaller residual. Whether the robot's motion matters at all is asked by
+fitting the same mechanics once more as if the tool had not moved: a body the robot pushes into
+is explained far better with the tool's travel, a scripted force (the paper's profiles) about as
+well without it. When the motion improves the fit (residual sum of squares) by less than
+``SOURCE_GAIN`` times and the fit is good (R^2 at least ``MIN_R2``), the body is a force
+source. The fit's R^2
 and RMS residual (N) come with it; :meth:`ContactFit.check` refuses a prediction from a poor
 fit in one line.
 """
@@ -35,7 +38,7 @@ from hilrig.errors import ParameterError
 Vector = NDArray[np.float64]
 
 HUNT_CROSSLEY_N = 1.5
-SOURCE_SHARE = 0.05  # below this share of the force explained by the robot's motion: a source
+SOURCE_GAIN = 3.0  # the tool's travel improves a body's fit less than this many times: a source
 MIN_R2 = 0.9  # a fit poorer than this is not used to predict
 MAX_RMS_SHARE = 0.1  # nor one whose RMS residual exceeds this share of the peak force
 ONSET_SHARE = 0.02  # the contact phase: where |F| exceeds this share of its peak
@@ -101,7 +104,7 @@ class ContactFit:
     r2: float
     rms_n: float
     peak_n: float
-    motion_share: float  # how much of the force the robot's motion explains (see module)
+    motion_gain: float  # how many times better the fit is with the robot's motion (module)
     t_on_s: float
     t_off_s: float
 
@@ -162,12 +165,13 @@ def fit_contact(
     total = float(np.sum((f_in - f_in.mean()) ** 2))
     r2 = 1.0 - float(np.sum(inside**2)) / total if total > 0 else 0.0
     rms = float(np.sqrt(np.mean(inside**2)))
-    share = _motion_share(model, t[within], f_in, y[within], y_rate[within])
-    if share < SOURCE_SHARE and mechanics is None and r2 >= MIN_R2:
+    still = np.zeros_like(y)
+    _, residual_still = _fit(model.mechanics, direction, t, f, still, still, (*bounds[:2], 0.0))
+    gain = float(np.sum(residual_still[within] ** 2)) / max(float(np.sum(inside**2)), 1e-300)
+    if gain < SOURCE_GAIN and mechanics is None and r2 >= MIN_R2:
         model = ContactModel(Mechanics.FORCE_SOURCE, direction)
-        residual = np.zeros_like(f)
         r2, rms = 1.0, 0.0
-    return ContactFit(model, r2, rms, peak, share, bounds[0], bounds[1])
+    return ContactFit(model, r2, rms, peak, gain, bounds[0], bounds[1])
 
 
 _MECHANICS = (Mechanics.SPRING_DAMPER, Mechanics.HUNT_CROSSLEY)
@@ -215,16 +219,6 @@ def _fit(
                 best = (_model(kind, direction, solution.x, t_on, t_off, y_on), solution.fun)
     assert best is not None
     return best
-
-
-def _motion_share(model: ContactModel, t: Vector, f: Vector, y: Vector, y_rate: Vector) -> float:
-    """How much the force would differ had the robot not moved: the RMS of the model's force
-    with the tool's travel minus without it, over the force's own spread."""
-    assert model.motion is not None
-    h, h_rate = model.motion.at(t)
-    moved = model.force(h - y, h_rate - y_rate)
-    still = model.force(h, h_rate)
-    return float(np.sqrt(np.mean((moved - still) ** 2))) / max(float(np.std(f)), 1e-12)
 
 
 def _model(
