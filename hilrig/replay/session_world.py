@@ -34,7 +34,7 @@ from hilrig.world.response import EMULATED_BANDWIDTH_RAD_S, ServoResponse, fit_r
 EVENT_SHARE = 0.1
 EVENT_LOW_SHARE = 0.02
 EVENT_MIN_N = 0.5
-EVENT_MERGE_S = 0.2
+EVENT_MERGE_S = 1.0  # a robot that yields, leaves the body and comes back: one collision
 EVENT_PAD_S = 0.3
 
 STATE, JOINTS, COMMANDED, DESIRED, INPUT = (

@@ -12,7 +12,7 @@ between ``t_full`` and ``t_back``, withdraw at ``v_out``) and pushes on the pene
 - force source: ``f(t)`` as recorded, whatever the robot does (the paper's scripted profiles).
 
 :func:`fit_contact` fits both mechanics by least squares (``scipy.optimize.least_squares``)
-over the contact phase (the run of samples above ``ONSET_SHARE`` of the peak around it) and
+over the contact phase (from the first to the last sample above ``ONSET_SHARE`` of the peak) and
 keeps the one with the smaller residual. Whether the robot's motion matters at all is asked by
 fitting the same mechanics once more as if the tool had not moved: a body the robot pushes into
 is explained far better with the tool's travel, a scripted force (the paper's profiles) about as
@@ -137,13 +137,10 @@ def fit_contact(
     peak = float(magnitude.max(initial=0.0))
     if not (len(t_s) >= 10 and math.isfinite(peak) and peak > 0.0):
         raise ParameterError("no contact force to fit a contact model to")
-    # the contact phase: the run of samples above ONSET_SHARE of the peak around the peak
-    above = magnitude > ONSET_SHARE * peak
-    at = int(np.argmax(magnitude))
-    below_before = np.flatnonzero(~above[:at])
-    below_after = np.flatnonzero(~above[at:])
-    on = int(below_before[-1]) + 1 if len(below_before) else 0
-    off = at + int(below_after[0]) if len(below_after) else len(t_s)
+    # the contact phase: from the first to the last sample above ONSET_SHARE of the peak (a
+    # yielding robot may leave the body and come back to it within one collision)
+    phase = np.flatnonzero(magnitude > ONSET_SHARE * peak)
+    on, off = int(phase[0]), int(phase[-1]) + 1
     mean = force[on:off].mean(axis=0)
     u = mean / np.linalg.norm(mean)
     # fitted with a margin of a tenth of the phase each side: no force must be made there
