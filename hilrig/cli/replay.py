@@ -287,12 +287,20 @@ def _offline(
 
     from hilrig.cli.closed_loop import closed_summary
     from hilrig.cli.progress import phase_bar
-    from hilrig.replay.job import closed_replay_file, replay_file, replay_outputs, write_outputs
+    from hilrig.replay.job import (
+        check_closed_input,
+        closed_replay_file,
+        replay_file,
+        replay_outputs,
+        write_outputs,
+    )
     from hilrig.replay.specs import parse_specs
 
     specs = parse_specs(*spec_options)  # the size of sweeps is refused here, before any work
     closed_loop, mechanics = closed
-    bar = long_input or closed_loop
+    if closed_loop:
+        check_closed_input(file)
+    bar = long_input or (closed_loop and errors.is_terminal)
     with replay_outputs(out) as outputs, phase_bar(errors, enabled=bar) as progress:
         if closed_loop:
             replayed = closed_replay_file(file, specs, mechanics=mechanics, progress=progress)

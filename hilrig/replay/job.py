@@ -103,6 +103,17 @@ def replay_file(
     return Replayed(trace, runs, replay(trace, runs, jobs=jobs, progress=progress))
 
 
+def check_closed_input(path: PathLike) -> Path:
+    """``path`` if it can be replayed closed loop (a recording); else ReplayError (one line)."""
+    p = Path(path)
+    if p.suffix.lower() not in INPUT_MCAP_SUFFIXES:
+        raise ReplayError(
+            f"{p}: --closed-loop needs a recorded session (.mcap): the contact is fitted from "
+            "the recorded force and the robot's measured motion"
+        )
+    return p
+
+
 def closed_replay_file(
     path: PathLike,
     specs: Sequence[ControllerSpec],
@@ -117,12 +128,7 @@ def closed_replay_file(
     ``progress`` follows the phases ``fit`` and ``closed`` (in runs). Raises ReplayError (one
     line) for an input that is not a recording of the live loop or a collision too poorly fitted
     to predict from."""
-    p = Path(path)
-    if p.suffix.lower() not in INPUT_MCAP_SUFFIXES:
-        raise ReplayError(
-            f"{p}: --closed-loop needs a recorded session (.mcap): the contact is fitted from "
-            "the recorded force and the robot's measured motion"
-        )
+    p = check_closed_input(path)
     if progress is not None:
         progress("fit", 0, 1)
     model = RobotModel()
