@@ -31,7 +31,11 @@ from hilrig.analysis.sources import Source
 from hilrig.errors import AnalysisError
 
 # The metrics a comparison lists, in display order; tracking_rms is per run, not per event.
+# Peak force and impulse differ between runs only in closed-loop replays (hilrig replay
+# --closed-loop, where each run meets its own predicted force); open loop they are equal.
 COMPARED = (
+    "peak_force",
+    "impulse",
     "max_abs_offset",
     "time_to_max_offset_s",
     "recovery_time_s",

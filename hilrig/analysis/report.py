@@ -22,6 +22,7 @@ from hilrig.errors import AnalysisError
 from hilrig.outputs import check_new_file, new_files
 
 LABELS = {
+    "peak_force": "peak force",
     "max_abs_offset": "max |offset|",
     "time_to_max_offset_s": "response time",
     "recovery_time_s": "recovery time",
