@@ -11,16 +11,15 @@ between ``t_full`` and ``t_back``, withdraw at ``v_out``) and pushes on the pene
   ``n = 1.5``, Hertzian contact);
 - force source: ``f(t)`` as recorded, whatever the robot does (the paper's scripted profiles).
 
-:func:`fit_contact` fits both mechanics by least squares (``scipy.optimize.least_squares``)
-over the contact phase (from the first to the last sample above ``ONSET_SHARE`` of the peak) and
-keeps the one with the smaller residual. Whether the robot's motion matters at all is asked by
-fitting the same mechanics once more as if the tool had not moved: a body the robot pushes into
-is explained far better with the tool's travel, a scripted force (the paper's profiles) about as
-well without it. When the motion improves the fit (residual sum of squares) by less than
-``SOURCE_GAIN`` times and the fit is good (R^2 at least ``MIN_R2``), the body is a force
-source. The fit's R^2
-and RMS residual (N) come with it; :meth:`ContactFit.check` refuses a prediction from a poor
-fit in one line.
+:func:`fit_contact` fits both mechanics by least squares (``scipy.optimize.least_squares``) over
+the contact phase (from the first to the last sample above ``ONSET_SHARE`` of the peak and clear
+of the noise at the window's edges) and keeps the one with the smaller residual. Whether the
+robot's motion matters at all is asked by fitting the same mechanics once more as if the tool
+had not moved: a body the robot pushes into is explained far better with the tool's travel, a
+scripted force (the paper's profiles) about as well without it. When the motion improves the fit
+(residual sum of squares) by less than ``SOURCE_GAIN`` times and the fit is good (R^2 at least
+``MIN_R2``), the body is a force source. The fit's R^2 and RMS residual (N) come with it;
+:meth:`ContactFit.check` refuses a prediction from a poor fit in one line.
 """
 
 from __future__ import annotations
@@ -41,7 +40,9 @@ HUNT_CROSSLEY_N = 1.5
 SOURCE_GAIN = 3.0  # the tool's travel improves a body's fit less than this many times: a source
 MIN_R2 = 0.9  # a fit poorer than this is not used to predict
 MAX_RMS_SHARE = 0.1  # nor one whose RMS residual exceeds this share of the peak force
-ONSET_SHARE = 0.02  # the contact phase: where |F| exceeds this share of its peak
+ONSET_SHARE = 0.02  # the contact phase: where |F| exceeds this share of its peak,
+NOISE_MARGIN = 1.5  # and this many times the largest |F| in the first and last tenth of the
+MAX_ONSET_SHARE = 0.2  # window (its noise), but never more than this share of the peak
 
 
 class Mechanics(StrEnum):
@@ -137,9 +138,13 @@ def fit_contact(
     peak = float(magnitude.max(initial=0.0))
     if not (len(t_s) >= 10 and math.isfinite(peak) and peak > 0.0):
         raise ParameterError("no contact force to fit a contact model to")
-    # the contact phase: from the first to the last sample above ONSET_SHARE of the peak (a
-    # yielding robot may leave the body and come back to it within one collision)
-    phase = np.flatnonzero(magnitude > ONSET_SHARE * peak)
+    # the contact phase: from the first to the last sample above ONSET_SHARE of the peak and
+    # clear of the noise at the window's edges (a yielding robot may leave the body and come
+    # back to it within one collision)
+    edge = max(len(t_s) // 10, 1)
+    noise = float(max(magnitude[:edge].max(), magnitude[-edge:].max()))
+    threshold = min(max(ONSET_SHARE * peak, NOISE_MARGIN * noise), MAX_ONSET_SHARE * peak)
+    phase = np.flatnonzero(magnitude > threshold)
     on, off = int(phase[0]), int(phase[-1]) + 1
     mean = force[on:off].mean(axis=0)
     u = mean / np.linalg.norm(mean)
