@@ -8,11 +8,13 @@ import threading
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from replay_helpers import EXAMPLE
 from typer.testing import CliRunner
 
 from hilrig.cli import app
+from hilrig.replay import counterfactual
 from hilrig.replay.counterfactual import figures
 from hilrig.replay.job import closed_replay_file
 from hilrig.replay.outputs import load_results
@@ -141,3 +143,17 @@ def test_a_table_cannot_be_replayed_closed_loop(tmp_path: Path) -> None:
         f"error: {csv}: --closed-loop needs a recorded session (.mcap): the contact is fitted "
         "from the recorded force and the robot's measured motion\n"
     )
+
+
+def test_runs_in_a_process_pool_give_the_same_table(
+    recordings: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    specs = parse_specs(["adaptive", "variable-stiffness", "fixed"])
+    monkeypatch.setattr(counterfactual, "POOL_MIN_TICKS", 10**12)
+    alone = closed_replay_file(recordings["fixed"], specs).table
+    monkeypatch.setattr(counterfactual, "POOL_MIN_TICKS", 0)
+    monkeypatch.setattr(counterfactual.os, "sched_getaffinity", lambda pid: {0, 1})
+    assert counterfactual.choose_workers(4, 10) == 2
+    pooled = closed_replay_file(recordings["fixed"], specs).table
+    pd.testing.assert_frame_equal(pooled, alone)
+    assert pooled.attrs == alone.attrs
