@@ -14,7 +14,11 @@ moment: ``r = F x M / |F|^2``), its median over the contact phase, in the sensor
 
 from __future__ import annotations
 
+import os
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from multiprocessing import get_all_start_methods, get_context
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +40,7 @@ EVENT_LOW_SHARE = 0.02
 EVENT_MIN_N = 0.5
 EVENT_MERGE_S = 1.0  # a robot that yields, leaves the body and comes back: one collision
 EVENT_PAD_S = 0.3
+POOL_MIN_COLLISIONS = 4  # fitted in a process pool from this many (about 0.5 s each)
 
 STATE, JOINTS, COMMANDED, DESIRED, INPUT = (
     "/controller/state",
@@ -140,19 +145,21 @@ def load_world(
     except ParameterError as err:
         raise ReplayError(f"{path}: {err}") from err
     contact_rec = poses[:, :3, 3].copy()
-    collisions = []
-    for number, (start, stop) in enumerate(collision_windows(t_s, force[:, :3]), 1):
-        name = f"{path.name} collision {number} at {t_s[start]:.2f} s"
+    windows = collision_windows(t_s, force[:, :3])
+    names, points = [], []
+    for number, (start, stop) in enumerate(windows, 1):
+        names.append(f"{path.name} collision {number} at {t_s[start]:.2f} s")
         window = slice(start, stop)
-        point = _contact_point(force[window, :3], moment[window], poses[window])
-        contact_rec[window] = poses[window, :3, 3] + poses[window, :3, :3] @ point
-        try:
-            fit = fit_contact(
-                t_s[window], force[window, :3], contact_rec[window], mechanics=mechanics
-            )
-        except ParameterError as err:
-            raise ReplayError(f"{name}: {err}") from err
-        onset = start + int(np.searchsorted(t_s[window], fit.t_on_s))
+        points.append(_contact_point(force[window, :3], moment[window], poses[window]))
+        # the closed loop applies a collision's model until the next one starts
+        reach = slice(start, windows[number][0] if number < len(windows) else len(t_s))
+        contact_rec[reach] = poses[reach, :3, 3] + poses[reach, :3, :3] @ points[-1]
+    inputs = [(t_s[a:b], force[a:b, :3], contact_rec[a:b], mechanics) for a, b in windows]
+    collisions = []
+    for name, (start, stop), point, fit in zip(
+        names, windows, points, _fits(names, inputs), strict=True
+    ):
+        onset = start + int(np.searchsorted(t_s[start:stop], fit.t_on_s))
         reference = tuple(float(v) for v in contact_rec[onset])
         collisions.append(Collision(name, start, stop, fit, reference, tuple(point)))  # type: ignore[arg-type]
     return SessionWorld(
@@ -166,6 +173,37 @@ def load_world(
         tuple(collisions),
         emulated,
     )
+
+
+FitInput = tuple[Array, Array, Array, Mechanics | None]
+
+
+def _fit(arguments: FitInput) -> ContactFit:
+    t_s, force, tool, mechanics = arguments
+    return fit_contact(t_s, force, tool, mechanics=mechanics)
+
+
+def _fits(names: Sequence[str], inputs: Sequence[FitInput]) -> list[ContactFit]:
+    """Each collision's fit, in forked processes once there are ``POOL_MIN_COLLISIONS``; raises
+    ReplayError (one line, naming the collision) for one that cannot be fitted."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    workers = min(cores or 1, len(inputs))
+    fits: list[ContactFit] = []
+    if workers > 1 and len(inputs) >= POOL_MIN_COLLISIONS and "fork" in get_all_start_methods():
+        with ProcessPoolExecutor(workers, mp_context=get_context("fork")) as pool:
+            futures = [pool.submit(_fit, arguments) for arguments in inputs]
+            for name, future in zip(names, futures, strict=True):
+                try:
+                    fits.append(future.result())
+                except ParameterError as err:
+                    raise ReplayError(f"{name}: {err}") from err
+        return fits
+    for name, arguments in zip(names, inputs, strict=True):
+        try:
+            fits.append(_fit(arguments))
+        except ParameterError as err:
+            raise ReplayError(f"{name}: {err}") from err
+    return fits
 
 
 def collision_windows(t_s: Array, force_n: Array) -> list[tuple[int, int]]:

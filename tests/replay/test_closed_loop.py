@@ -14,7 +14,8 @@ from replay_helpers import EXAMPLE
 from typer.testing import CliRunner
 
 from hilrig.cli import app
-from hilrig.replay import counterfactual
+from hilrig.errors import ReplayError
+from hilrig.replay import counterfactual, session_world
 from hilrig.replay.counterfactual import figures
 from hilrig.replay.job import closed_replay_file
 from hilrig.replay.outputs import load_results
@@ -157,3 +158,21 @@ def test_runs_in_a_process_pool_give_the_same_table(
     pooled = closed_replay_file(recordings["fixed"], specs).table
     pd.testing.assert_frame_equal(pooled, alone)
     assert pooled.attrs == alone.attrs
+
+
+def test_collisions_fitted_in_a_process_pool_are_fitted_alike(
+    recordings: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    world = load_world(recordings["fixed"], RobotModel())
+    (c,) = world.collisions
+    window = slice(c.start, c.stop)
+    hit = (world.t_s[window], world.trace.force[window, :3], world.contact_rec_m[window], None)
+    quiet = (hit[0], np.zeros_like(hit[1]), hit[2], None)
+    names = [f"collision {i}" for i in range(1, 5)]
+    monkeypatch.setattr(session_world.os, "sched_getaffinity", lambda pid: {0})
+    alone = session_world._fits(names, [hit] * 4)
+    monkeypatch.setattr(session_world.os, "sched_getaffinity", lambda pid: {0, 1})
+    assert session_world._fits(names, [hit] * 4) == alone == [c.fit] * 4
+    with pytest.raises(ReplayError) as caught:
+        session_world._fits(names, [hit, hit, quiet, hit])
+    assert str(caught.value) == "collision 3: no contact force to fit a contact model to"
