@@ -48,7 +48,7 @@ from hilrig.replay import Run, parse_specs
 from hilrig.replay.counterfactual import closed_loop, figures
 from hilrig.replay.inputs import session_index
 from hilrig.replay.job import closed_replay_file
-from hilrig.replay.session_world import Collision, SessionWorld, load_world
+from hilrig.replay.session_world import SessionWorld, load_world
 from hilrig.replay.verify import recorded_controller
 from hilrig.rig import LoopConfig, SessionConfig, record_session
 from hilrig.robot import RobotModel
@@ -180,19 +180,18 @@ def _compare(
     pair: dict[str, Any] = {"status": "compared"}
     if len(a.collisions) != len(b.collisions):
         return pair | {"status": f"collisions differ: {len(a.collisions)} vs {len(b.collisions)}"}
-    rows = [_row(a, b, pred, ca, cb) for ca, cb in zip(a.collisions, b.collisions, strict=True)]
+    rows = [_row(a, b, pred, i) for i in range(len(a.collisions))]
     for row in rows:
         for key in KEYS:
             into[key].append(row[key])
     return pair | {"collisions": rows}
 
 
-def _row(
-    a: SessionWorld, b: SessionWorld, pred: Floats, ca: Collision, cb: Collision
-) -> dict[str, float]:
-    truth = figures(b.t_s, b.trace.force[:, :3], cb)
-    closed = figures(a.t_s, pred, ca)
-    opened = figures(a.t_s, a.trace.force[:, :3], ca)
+def _row(a: SessionWorld, b: SessionWorld, pred: Floats, i: int) -> dict[str, float]:
+    truth = figures(b.t_s, b.trace.force[:, :3], b.reach(i))
+    closed = figures(a.t_s, pred, a.reach(i))
+    opened = figures(a.t_s, a.trace.force[:, :3], a.reach(i))
+    ca = a.collisions[i]
     return {
         "t_start_s": float(a.t_s[ca.start]),
         "t_end_s": float(a.t_s[ca.stop - 1]),

@@ -5,17 +5,16 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 if TYPE_CHECKING:
     from hilrig.replay.job import Replayed
 
+EXTRAPOLATED_S = 0.05  # predicted contact this long past the recorded one's end is flagged
 UNITS = {"spring-damper": ("N/m", "N*s/m"), "hunt-crossley": ("N/m^1.5", "s/m")}
 
 
 def closed_summary(replayed: Replayed) -> list[str]:
     """The closed-loop record of ``replayed``'s table, for people."""
-    from hilrig.replay.results import INPUT_KEY, run_slices
+    from hilrig.replay.results import INPUT_KEY
 
     record: dict[str, Any] = replayed.table.attrs[INPUT_KEY]["closed_loop"]
     r = record["response"]
@@ -35,20 +34,19 @@ def closed_summary(replayed: Replayed) -> list[str]:
             f"({c['reproduction_peak_error_pct']:.1f} %), impulse "
             f"{c['reproduction_impulse_error_pct']:.1f} % off"
         )
-    table = replayed.table
-    t_s = replayed.trace.t_s
-    for index, (name, rows) in enumerate(run_slices(table).items(), 1):  # 0: the recorded
-        force = np.stack([table[f"force_{a}"].to_numpy()[rows] for a in "xyz"], 1)
-        magnitude = np.linalg.norm(force, axis=1)
+    for index, (name, rows) in enumerate(record["predicted"].items(), 1):  # 0: the recorded
         parts = []
-        for number, c in enumerate(collisions, 1):
-            within = (t_s >= c["t_s"][0]) & (t_s <= c["t_s"][1])
-            peak = float(magnitude[within].max(initial=0.0))
-            impulse = float(np.trapezoid(magnitude[within], t_s[within]))
-            parts.append(
-                f"#{number} peak {peak:.2f} N (recorded {c['recorded_peak_n']:.2f}), "
-                f"impulse {impulse:.2f} N*s (recorded {c['recorded_impulse_n_s']:.2f})"
+        for number, (c, got) in enumerate(zip(collisions, rows, strict=True), 1):
+            part = (
+                f"#{number} peak {got['peak_n']:.2f} N (recorded {c['recorded_peak_n']:.2f}), "
+                f"impulse {got['impulse_n_s']:.2f} N*s (recorded {c['recorded_impulse_n_s']:.2f})"
             )
+            if got["contact_beyond_s"] > EXTRAPOLATED_S:
+                part += (
+                    f", in contact {got['contact_beyond_s']:.2f} s past the recorded contact's "
+                    "end (the body's motion there is extrapolated)"
+                )
+            parts.append(part)
         held, stopped = record["hold_ticks"][index], record["stopped"][index]
         tail = f"; {held} hold ticks" if held else ""
         tail += "; protective stop (the force exceeded its limit)" if stopped else ""

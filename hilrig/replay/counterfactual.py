@@ -48,10 +48,11 @@ from hilrig.replay.closed_loop import (
     simulate_kernel,
 )
 from hilrig.replay.results import FLOAT_ROWS, INPUT_KEY, Run, frame
-from hilrig.replay.session_world import Collision, SessionWorld
+from hilrig.replay.session_world import SessionWorld
 from hilrig.robot import RobotModel
 from hilrig.tick.kernel import HOLD_TICKS, STOPPED, CompiledTick
 from hilrig.tick.safety import SafetyClamp, SafetyConfig
+from hilrig.world.contact import ONSET_SHARE
 from hilrig.world.plant import servo_limits
 
 #: ``progress(done, total)`` in runs (the recorded controller's first).
@@ -156,14 +157,33 @@ def simulate_run(
 
 
 def figures(
-    t_s: NDArray[np.float64], force_xyz: NDArray[np.float64], c: Collision
+    t_s: NDArray[np.float64], force_xyz: NDArray[np.float64], ticks: slice
 ) -> CollisionFigures:
-    """Peak and impulse of ``|F|`` (n, 3) over collision ``c``'s ticks."""
-    window = slice(c.start, c.stop)
-    magnitude = np.linalg.norm(force_xyz[window], axis=1)
+    """Peak and impulse of ``|F|`` (n, 3) over ``ticks`` (e.g. ``SessionWorld.reach(i)``)."""
+    magnitude = np.linalg.norm(force_xyz[ticks], axis=1)
     return CollisionFigures(
-        float(magnitude.max(initial=0.0)), float(np.trapezoid(magnitude, t_s[window]))
+        float(magnitude.max(initial=0.0)), float(np.trapezoid(magnitude, t_s[ticks]))
     )
+
+
+def predicted(world: SessionWorld, force_xyz: NDArray[np.float64]) -> list[dict[str, float]]:
+    """Per collision, a run's predicted peak force and impulse over its reach, and how long its
+    contact lasts past the recorded contact's end (there the body's motion is extrapolated)."""
+    rows = []
+    for i, c in enumerate(world.collisions):
+        ticks = world.reach(i)
+        got = figures(world.t_s, force_xyz, ticks)
+        magnitude = np.linalg.norm(force_xyz[ticks], axis=1)
+        touching = np.flatnonzero(magnitude > ONSET_SHARE * c.fit.peak_n)
+        last = float(world.t_s[ticks][touching[-1]]) if len(touching) else c.fit.t_off_s
+        rows.append(
+            {
+                "peak_n": got.peak_n,
+                "impulse_n_s": got.impulse_n_s,
+                "contact_beyond_s": max(0.0, last - c.fit.t_off_s),
+            }
+        )
+    return rows
 
 
 def closed_loop(
@@ -198,6 +218,10 @@ def closed_loop(
     force_row = FLOAT_ROWS["force"]
     reproduced = blocks.floats[:3, force_row, :n].T
     record = closed_loop_record(world, reproduced, done)
+    record["predicted"] = {
+        run.name: predicted(world, blocks.floats[:3, force_row, (i + 1) * n : (i + 2) * n].T)
+        for i, run in enumerate(runs)
+    }
     table = frame(world.trace, list(runs), _tail(blocks, n))
     table.attrs[INPUT_KEY] = {**table.attrs[INPUT_KEY], "closed_loop": record}
     return table, record
@@ -254,13 +278,14 @@ def _tail(blocks: Blocks, n: int) -> Blocks:
 def closed_loop_record(
     world: SessionWorld, reproduced_xyz: NDArray[np.float64], done: Sequence[Simulated]
 ) -> dict[str, Any]:
-    """JSON-ready: the arm's response, each collision's model, fit and reproduction error."""
+    """JSON-ready: the arm's response, each collision's model, fit and reproduction error (and,
+    added by :func:`closed_loop`, ``predicted``: per run and collision :func:`predicted`)."""
     r = world.response
     collisions = []
-    for c in world.collisions:
+    for i, c in enumerate(world.collisions):
         fit, model = c.fit, c.fit.model
-        recorded = figures(world.t_s, world.trace.force[:, :3], c)
-        again = figures(world.t_s, reproduced_xyz, c)
+        recorded = figures(world.t_s, world.trace.force[:, :3], world.reach(i))
+        again = figures(world.t_s, reproduced_xyz, world.reach(i))
         motion = model.motion
         collisions.append(
             {

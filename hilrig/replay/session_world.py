@@ -89,6 +89,11 @@ class SessionWorld:
         """The ticks' times from the first, s."""
         return self.trace.t_s
 
+    def reach(self, index: int) -> slice:
+        """The ticks collision ``index``'s model applies to: from its start to the next's."""
+        following = self.collisions[index + 1].start if index + 1 < len(self.collisions) else None
+        return slice(self.collisions[index].start, following or len(self.t_s))
+
 
 def load_world(
     path: Path, model: RobotModel, *, mechanics: Mechanics | None = None
