@@ -28,7 +28,9 @@ from hilrig.analysis.metrics import (
     unit,
 )
 from hilrig.analysis.sources import Source
+from hilrig.analysis.verdict import Verdict, VerdictConfig, area_of, judge, region_of
 from hilrig.errors import AnalysisError
+from hilrig.robot import RobotModel
 
 # The metrics a comparison lists, in display order; tracking_rms is per run, not per event.
 # Peak force and impulse differ between runs only in closed-loop replays (hilrig replay
@@ -43,6 +45,10 @@ COMPARED = (
     "peak_commanded_joint_speed_rad_s",
     "tracking_rms",
 )
+DEFAULT_VERDICTS = VerdictConfig()
+VERDICT_COLUMNS = tuple(
+    f.name for f in dataclasses.fields(Verdict) if f.name not in ("run", "event")
+)
 PER_EVENT = ("source", "event", "group", "axis")  # one comparison per event and axis
 ACROSS_SOURCES = ("group", "axis")  # means over every event of every source, per axis
 METRIC_COLUMNS = tuple(
@@ -54,12 +60,17 @@ METRIC_COLUMNS = tuple(
 
 @dataclass(frozen=True)
 class Analysis:
-    """A source's events, with every run's metrics per event and axis and its tracking."""
+    """A source's events, with every run's metrics per event and axis and its tracking, and
+    every run's safety verdict per Cartesian event (none without a body region; ``judged``
+    says against what, or why not)."""
 
     source: Source
     events: tuple[CollisionEvent, ...]
     metrics: tuple[AxisMetrics, ...]
     tracking: tuple[TrackingMetrics, ...]
+    verdicts: tuple[Verdict, ...] = ()
+    region: str = ""  # the body region judged against ("" none)
+    judged: str = ""  # against what (region, where it came from, area), or why not
 
 
 def analyze(
@@ -67,34 +78,55 @@ def analyze(
     *,
     events: EventConfig = DEFAULT_EVENTS,
     metrics: MetricsConfig = DEFAULT_METRICS,
+    safety: VerdictConfig = DEFAULT_VERDICTS,
 ) -> Analysis:
-    """Detect the source's events once and measure every run against them."""
+    """Detect the source's events once, measure every run against them and judge each run's
+    Cartesian collisions against the body region's limits."""
     first = source.runs[0]
     found = detect(first.t_s, first.force, first.axes, events)
+    session = source.session
+    region, judged = region_of(safety, session.body_region if session is not None else "")
+    verdicts: list[Verdict] = []
+    if region is not None:
+        area = area_of(safety, session.contact_area_cm2 if session is not None else None)
+        model = RobotModel()
+        for run in source.runs:
+            verdicts += judge(run, found, region, area, safety.transient_s, model)
+        judged = f"{region.name} {judged}, contact area {area:.3g} cm^2"
     return Analysis(
         source,
         found,
         tuple(m for run in source.runs for m in event_metrics(run, found, metrics)),
         tuple(m for run in source.runs for m in tracking_metrics(run, found)),
+        tuple(verdicts),
+        "" if region is None else region.name,
+        judged,
     )
 
 
 def metrics_frame(analyses: Sequence[Analysis]) -> pd.DataFrame:
     """One row per source, run, event and axis: the AxisMetrics fields (None as NaN), the run's
-    law, and the axis's ``tracking_rms`` over the whole run (the same on each event's row)."""
+    law, the axis's ``tracking_rms`` over the whole run (the same on each event's row) and the
+    run's safety verdict on the event (``VERDICT_COLUMNS``; null without one: a joint event, or
+    no body region)."""
     rows = []
     for analysis in analyses:
         laws = {run.name: run.law for run in analysis.source.runs}
         rms = {(t.run, t.axis): t.tracking_rms for t in analysis.tracking}
+        judged = {(v.run, v.event): dataclasses.asdict(v) for v in analysis.verdicts}
         for m in analysis.metrics:
             row = dataclasses.asdict(m) | {"group": m.group.value}
             row |= {"source": analysis.source.name, "law": laws[m.run]}
+            row |= judged.get((m.run, m.event), {})
             rows.append(row | {"tracking_rms": rms[(m.run, m.axis)]})
     columns = ["source", "run", "law", "event", "group", "axis", "start_s", "end_s"]
-    columns += [*METRIC_COLUMNS, "tracking_rms"]
+    columns += [*METRIC_COLUMNS, "tracking_rms", *VERDICT_COLUMNS]
     frame = pd.DataFrame(rows, columns=columns)
     numeric = [*METRIC_COLUMNS, "tracking_rms"]
+    numeric += [c for c in VERDICT_COLUMNS if c not in ("body_region", "verdict", "binding")]
     frame[numeric] = frame[numeric].astype(np.float64)
+    for text in ("body_region", "verdict", "binding"):
+        frame[text] = frame[text].astype(pd.StringDtype())
     return frame.astype({"event": np.int64})
 
 

@@ -18,6 +18,7 @@ from rich.table import Table
 
 from hilrig.analysis.compare import Analysis
 from hilrig.analysis.metrics import unit
+from hilrig.analysis.verdict import Verdict
 from hilrig.errors import AnalysisError
 from hilrig.outputs import check_new_file, new_files
 
@@ -59,6 +60,64 @@ def events_table(analysis: Analysis) -> Table:
             peak,
         )
     return table
+
+
+def verdicts_table(analysis: Analysis) -> Table:
+    """Each run's safety verdict per Cartesian collision (ISO/TS 15066; docs/safety.md)."""
+    table = Table(title=f"safety against ISO/TS 15066: {analysis.judged}", title_justify="left")
+    heads = ("#", "run", "peak N", "transient N", "limit N", "after N", "limit N", "N/cm^2",
+             "energy J", "robot kg", "speed m/s", "limit m/s", "verdict", "margin")  # fmt: skip
+    for head in heads:
+        table.add_column(head, justify="left" if head in ("run", "verdict") else "right")
+    for v in analysis.verdicts:
+        verdict = "[green]within[/]" if v.verdict == "within" else "[red]OVER[/]"
+        table.add_row(
+            str(v.event),
+            v.run,
+            *(
+                _number(x)
+                for x in (
+                    v.peak_force_n,
+                    v.transient_peak_n,
+                    v.transient_limit_n,
+                    v.quasi_static_peak_n,
+                    v.quasi_static_limit_n,
+                    v.pressure_n_cm2,
+                    v.energy_j,
+                    v.effective_mass_kg,
+                    v.approach_speed_m_s,
+                    v.speed_limit_m_s,
+                )
+            ),
+            verdict,
+            f"{v.margin_pct:+.1f} % ({v.binding})",
+        )
+    return table
+
+
+def verdict_line(analysis: Analysis) -> str:
+    """One line: how many collisions are within the limits, and the smallest margin."""
+    if not analysis.region:
+        return f"safety: {analysis.judged}"
+    if not analysis.verdicts:
+        return f"safety ({analysis.judged}): no Cartesian collision to judge"
+    over = sum(v.verdict == "over" for v in analysis.verdicts)
+    worst = min(analysis.verdicts, key=lambda v: v.margin_pct)
+    return (
+        f"safety ({analysis.judged}): {len(analysis.verdicts) - over} within, {over} over; "
+        f"smallest margin {worst.margin_pct:+.1f} % ({worst.binding}, event {worst.event}, "
+        f"run {worst.run})"
+    )
+
+
+def _figures(v: Verdict) -> tuple[float, ...]:
+    return (v.peak_force_n, v.transient_peak_n, v.transient_limit_n, v.quasi_static_peak_n,
+            v.quasi_static_limit_n, v.pressure_n_cm2, v.energy_j, v.effective_mass_kg,
+            v.approach_speed_m_s, v.speed_limit_m_s)  # fmt: skip
+
+
+def _number(value: float) -> str:
+    return "-" if math.isnan(value) else f"{value:.3g}"
 
 
 def comparison_table(comparison: pd.DataFrame, *, baseline: str, title: str) -> Table:

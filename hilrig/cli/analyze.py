@@ -47,6 +47,28 @@ def analyze_command(
     merge_gap_s: Annotated[
         float, typer.Option("--merge-gap-s", help="Events closer than this merge, s.")
     ] = 0.05,
+    body_region: Annotated[
+        str | None,
+        typer.Option(
+            help="ISO/TS 15066 body region the robot hit (over the recording's), for the safety "
+            "verdicts: skull, face, neck, back, chest, abdomen, pelvis, upper-arm, lower-arm, "
+            "hand, thigh, lower-leg.",
+        ),
+    ] = None,
+    contact_area_cm2: Annotated[
+        float | None,
+        typer.Option(
+            "--contact-area-cm2",
+            help="Contact area for the pressure, cm^2 (default: the recording's, else the "
+            "standard's probe, 1.96).",
+        ),
+    ] = None,
+    transient_s: Annotated[
+        float,
+        typer.Option(
+            "--transient-s", help="Length of a collision's transient phase, s (docs/safety.md)."
+        ),
+    ] = 0.5,
     overwrite: Annotated[
         bool,
         typer.Option(
@@ -75,9 +97,11 @@ def analyze_command(
     )
     from hilrig.analysis.dataset import check_dataset_root
     from hilrig.analysis.report import check_table_path
+    from hilrig.analysis.verdict import VerdictConfig
     from hilrig.errors import AnalysisError
 
     config = EventConfig(delta=delta, debounce_s=debounce_s, merge_gap_s=merge_gap_s)
+    safety = VerdictConfig(body_region, contact_area_cm2, transient_s)
     dataset = out is not None and (out.is_dir() or not out.suffix)
     if out is not None:  # every output checked before any work
         if any(out.resolve() == path.resolve() for path in paths):
@@ -90,7 +114,7 @@ def analyze_command(
     names = list(dict.fromkeys(run.name for source in sources for run in source.runs))
     if baseline is not None and baseline not in names:
         raise AnalysisError(f"baseline {baseline!r} is not a run here; runs: {', '.join(names)}")
-    analyses = [analyze(s, events=config) for s in sources]
+    analyses = [analyze(s, events=config, safety=safety) for s in sources]
     runs = runs_of(values(analyses))
     chosen = baseline if baseline is not None else default_baseline(runs)
     console = Console(highlight=False)
@@ -131,6 +155,7 @@ def print_source(console: Console, analysis: Analysis, baseline: str, delta: flo
         runs_of,
         values,
     )
+    from hilrig.analysis.report import verdict_line, verdicts_table
 
     console.print(f"[bold]{escape(analysis.source.name)}[/]")
     console.print(events_table(analysis))
@@ -144,4 +169,7 @@ def print_source(console: Console, analysis: Analysis, baseline: str, delta: flo
         for event, axis in zip(table["event"], table["axis"], strict=True)
     ]
     console.print(comparison_table(table[shown], baseline=base, title="comparison"))
+    if analysis.verdicts:
+        console.print(verdicts_table(analysis))
+    console.print(verdict_line(analysis), soft_wrap=True)
     return table

@@ -57,6 +57,21 @@ def record(
     trajectory: Annotated[
         str, typer.Option(help="Task: circle, square, waypoints (points from --config), hold.")
     ] = "circle",
+    body_region: Annotated[
+        str | None,
+        typer.Option(
+            help="The ISO/TS 15066 body region the robot meets, for the safety verdicts: skull, "
+            "face, neck, back, chest, abdomen, pelvis, upper-arm, lower-arm, hand, thigh, "
+            "lower-leg (default: the scenario's, hand for hand-contact and paper-end-effector).",
+        ),
+    ] = None,
+    contact_area_cm2: Annotated[
+        float | None,
+        typer.Option(
+            "--contact-area-cm2",
+            help="The contact's area, cm^2 (default: the standard's probe, 1.96).",
+        ),
+    ] = None,
     duration: Annotated[float, typer.Option(help="Seconds; Ctrl-C ends earlier, cleanly.")] = 20.0,
     rate: Annotated[float, typer.Option(help="Loop rate, Hz (the paper used 500).")] = 1000.0,
     out: Annotated[Path | None, typer.Option(help="The MCAP file to write.")] = None,
@@ -88,7 +103,12 @@ def record(
     import threading
     import time
 
-    from hilrig.cli.session_output import SessionWatch, print_result, summary_console
+    from hilrig.cli.session_output import (
+        SessionWatch,
+        print_result,
+        print_verdict,
+        summary_console,
+    )
     from hilrig.errors import HilrigError
     from hilrig.rig import LoopConfig, SessionConfig, record_session
     from hilrig.rig.config_file import RigFile, read_rig_file, session_path
@@ -111,6 +131,8 @@ def record(
             rate_hz=rate, law=controller.law(), cartesian_params=params, joint_params=joint_params
         ),
         session_id=time.strftime("%Y%m%d-%H%M%S"),
+        body_region=body_region or "",
+        contact_area_cm2=contact_area_cm2,
     )
     live = live_view(sink, session) if sink is not None else None
     stop = threading.Event()
@@ -121,6 +143,7 @@ def record(
             session, stop=stop, live=live, on_start=watch.on_start, on_event=watch.on_event
         )
     print_result(summary_console(), result)
+    print_verdict(summary_console(), result)
     if result.recorder_error:
         raise HilrigError(f"the recording is incomplete: {result.recorder_error}")
     if result.ended_by:

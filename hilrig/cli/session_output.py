@@ -166,6 +166,21 @@ def summary_console() -> Console:
     return Console(soft_wrap=True, markup=False, highlight=False)
 
 
+def print_verdict(console: Console, result: SessionResult) -> None:
+    """The recorded collisions' safety verdict in one line (``hilrig analyze`` has the table);
+    nothing when the file cannot be read back whole."""
+    from hilrig.analysis import analyze, load_session
+    from hilrig.analysis.report import verdict_line
+    from hilrig.errors import HilrigError
+
+    if result.recorder_error:
+        return
+    try:
+        console.print(verdict_line(analyze(load_session(result.path))), soft_wrap=True)
+    except HilrigError as err:
+        console.print(f"safety: not judged ({err})", soft_wrap=True)
+
+
 def print_result(console: Console, result: SessionResult) -> None:
     """The session's summary, each line within 80 columns (but the file's name): file, ticks
     and timing, messages and drops, why it ended early, the emulated rig's own lateness and the

@@ -103,6 +103,8 @@ class SessionInfo:
     software_version: str = __version__
     scenario: str = ""  # the emulated volunteer ("" on a real rig: a person)
     scenario_settings: Mapping[str, object] = field(default_factory=dict)
+    body_region: str = ""  # what the robot hits (ISO/TS 15066 region; "" not given)
+    contact_area_cm2: float | None = None  # the contact's area (None: the standard's probe's)
 
     def __post_init__(self) -> None:
         validate_subject_id(self.subject_id)
@@ -112,6 +114,8 @@ class SessionInfo:
                 raise RecordingError(f"session {name} must be one non-empty line, got {value!r}")
         if not isinstance(self.scenario, str) or "\n" in self.scenario:
             raise RecordingError(f"session scenario must be one line, got {self.scenario!r}")
+        if not isinstance(self.body_region, str) or "\n" in self.body_region:
+            raise RecordingError(f"session body_region must be one line, got {self.body_region!r}")
         if not isinstance(self.scenario_settings, Mapping):
             raise RecordingError(
                 f"session scenario_settings must be a table, got {self.scenario_settings!r}"
@@ -128,6 +132,8 @@ class SessionInfo:
         controller_params: Mapping[str, ParamValue] | None = None,
         scenario: str = "",
         scenario_settings: Mapping[str, object] | None = None,
+        body_region: str = "",
+        contact_area_cm2: float | None = None,
     ) -> SessionInfo:
         """A session starting now: both clocks are read back to back."""
         mono = time.monotonic_ns()
@@ -142,6 +148,8 @@ class SessionInfo:
             controller_params=dict(controller_params or {}),
             scenario=scenario,
             scenario_settings=dict(scenario_settings or {}),
+            body_region=body_region,
+            contact_area_cm2=contact_area_cm2,
         )
 
     @property
@@ -167,6 +175,10 @@ class SessionInfo:
             "software_version": self.software_version,
             "scenario": self.scenario,
             "scenario_settings": json.dumps(dict(self.scenario_settings), sort_keys=True),
+            "body_region": self.body_region,
+            "contact_area_cm2": ""
+            if self.contact_area_cm2 is None
+            else repr(self.contact_area_cm2),
         }
 
     @classmethod
@@ -184,6 +196,8 @@ class SessionInfo:
                 software_version=record["software_version"],
                 scenario=record.get("scenario", ""),  # absent in files before it was recorded
                 scenario_settings=json.loads(record.get("scenario_settings", "{}")),
+                body_region=record.get("body_region", ""),  # absent before it was recorded
+                contact_area_cm2=float(area) if (area := record.get("contact_area_cm2")) else None,
             )
         except (KeyError, ValueError) as err:
             raise RecordingError(f"session metadata is incomplete or malformed ({err})") from err

@@ -174,6 +174,8 @@ def record_session(
                 rig=config.rig.value,
                 controller=config.loop.law.value,
                 controller_params=config.loop.params_record(),
+                body_region=config.region(),
+                contact_area_cm2=config.contact_area_cm2,
                 **volunteer,
             ),
             {

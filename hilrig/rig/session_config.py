@@ -23,7 +23,8 @@ from hilrig.rig.kinds import RigKind
 from hilrig.rig.loop import LoopConfig
 from hilrig.rig.virtual import VirtualInput
 from hilrig.tick.trajectory import make_trajectory
-from hilrig.world.scenarios import Scenario
+from hilrig.world.body import body_region
+from hilrig.world.scenarios import DEFAULT_BODY_REGION, Scenario
 from hilrig.world.scenarios import scenario as make_scenario
 
 EMULATED_TOOL = ToolLoad(mass_kg=0.5, com_in_sensor_m=(0.0, 0.0, 0.05))
@@ -49,6 +50,8 @@ class SessionConfig:
     tool: ToolLoad = EMULATED_TOOL
     tare_s: float = 0.2
     session_id: str = ""
+    body_region: str = ""  # what the robot hits (ISO/TS 15066; "": the scenario's default)
+    contact_area_cm2: float | None = None  # the contact's area (None: the standard's probe's)
     virtual: VirtualInput | None = None  # a recorded trace played as a virtual collision
     virtual_source: str = ""  # where that trace came from (file, start, duration)
 
@@ -73,7 +76,19 @@ class SessionConfig:
         self.volunteer()
         make_trajectory(self.trajectory, np.eye(4), **self.trajectory_options)
         self.loop.controller()
+        if self.body_region:
+            body_region(self.body_region)
+        area = self.contact_area_cm2
+        if area is not None and not (math.isfinite(area) and area > 0):
+            raise HilrigError(f"contact area {area:g} cm^2: must be a finite area > 0")
         check_recording_path(self.out)
+
+    def region(self) -> str:
+        """The body region the session records: the one given, else the emulated scenario's
+        default (none on a real rig)."""
+        if self.body_region or self.rig is not RigKind.EMULATED:
+            return self.body_region
+        return DEFAULT_BODY_REGION.get(self.scenario, "")
 
     def volunteer(self) -> Scenario:
         """The emulated volunteer: the scenario with its settings (ParameterError, one line)."""

@@ -141,6 +141,21 @@ class RobotModel:
         )
         return jac
 
+    def effective_mass_kg(
+        self, q_rad: NDArray[np.float64], direction_in_base: NDArray[np.float64]
+    ) -> float:
+        """The arm's effective mass at the TCP along ``direction_in_base`` (3,) at ``q_rad``, kg:
+        ``1 / (u^T J M^-1 J^T u)``, with the joint-space mass matrix M (pinocchio's CRBA, the
+        URDF's inertials) and the TCP's linear Jacobian J, ``u`` the unit direction."""
+        self._check(q_rad, "effective_mass_kg")
+        u = np.asarray(direction_in_base, dtype=np.float64)
+        u = u / np.linalg.norm(u)
+        mass = pin.crba(self._model, self._data, q_rad)
+        mass = np.triu(mass) + np.triu(mass, 1).T  # CRBA fills the upper triangle
+        linear = self.jacobian(q_rad)[:3]
+        mobility = linear @ np.linalg.solve(mass, linear.T)  # J M^-1 J^T, m/(N*s^2)
+        return float(1.0 / (u @ mobility @ u))
+
     def ik(
         self,
         pose_in_base: NDArray[np.float64],

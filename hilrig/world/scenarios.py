@@ -218,6 +218,11 @@ class NoContact:
         return ZERO6
 
 
+#: The ISO/TS 15066 body region each volunteer touches the robot with (hilrig.world.body): the
+#: paper's end-effector forces and the hand model are a person's hand; the paper's body torques
+#: name no contact force.
+DEFAULT_BODY_REGION = {"hand-contact": "hand", "paper-end-effector": "hand"}
+
 SCENARIOS: dict[str, Callable[[], Scenario]] = {
     "none": NoContact,
     "paper-end-effector": PaperEndEffector,
