@@ -84,11 +84,10 @@ def analyze(
     Cartesian collisions against the body region's limits."""
     first = source.runs[0]
     found = detect(first.t_s, first.force, first.axes, events)
-    session = source.session
-    region, judged = region_of(safety, session.body_region if session is not None else "")
+    region, judged = region_of(safety, source.body_region)
     verdicts: list[Verdict] = []
     if region is not None:
-        area = area_of(safety, session.contact_area_cm2 if session is not None else None)
+        area = area_of(safety, source.contact_area_cm2)
         model = RobotModel()
         for run in source.runs:
             verdicts += judge(run, found, region, area, safety.transient_s, model)

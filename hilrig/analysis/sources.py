@@ -92,6 +92,8 @@ class Source:
     session_id: str | None = None
     session: SessionInfo | None = None
     start_ns: int | None = None
+    body_region: str = ""  # the recorded ISO/TS 15066 region ("" none)
+    contact_area_cm2: float | None = None  # the recorded contact area (None: not given)
 
     @property
     def name(self) -> str:
@@ -137,6 +139,8 @@ def load_session(paths: Path | Sequence[Path]) -> Source:
         session_id=session.session_id,
         session=session,
         start_ns=t0,
+        body_region=session.body_region,
+        contact_area_cm2=session.contact_area_cm2,
     )
 
 
@@ -166,7 +170,8 @@ def load_replay(path: Path) -> Source:
     """A replay result table as a source with one run per distinct ``run``, in first-seen order.
 
     The optional schema metadata ``hilrig.input`` (JSON) gives the recorded session the input
-    came from (``subject_id``, ``session_id``) and its ``t0_ns``. Raises AnalysisError naming
+    came from (``subject_id``, ``session_id``, ``body_region``, ``contact_area_cm2``) and its
+    ``t0_ns``. Raises AnalysisError naming
     the file if it cannot be read or breaks the table contract.
     """
     try:
@@ -179,6 +184,7 @@ def load_replay(path: Path) -> Source:
     except (AnalysisError, ValueError) as err:
         raise AnalysisError(f"{path}: {err}") from err
     subject_id, session_id, t0_ns = (origin.get(k) for k in ("subject_id", "session_id", "t0_ns"))
+    area = origin.get("contact_area_cm2")
     return Source(
         path,
         SourceKind.REPLAY,
@@ -186,6 +192,8 @@ def load_replay(path: Path) -> Source:
         subject_id=None if subject_id is None else validate_subject_id(str(subject_id)),
         session_id=None if session_id is None else str(session_id),
         start_ns=None if t0_ns is None else int(t0_ns),
+        body_region=str(origin.get("body_region") or ""),
+        contact_area_cm2=None if area is None else float(area),
     )
 
 

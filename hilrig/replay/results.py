@@ -91,6 +91,8 @@ def input_metadata(trace: ForceTrace) -> dict[str, Any]:
         "t0_ns": trace.t0_ns,
         "session_id": None if session is None else session.session_id,
         "subject_id": None if session is None else session.subject_id,
+        "body_region": None if session is None else session.body_region or None,
+        "contact_area_cm2": None if session is None else session.contact_area_cm2,
         "notes": list(trace.notes),
     }
 

@@ -13,6 +13,7 @@ import pytest
 from replay_helpers import EXAMPLE
 from typer.testing import CliRunner
 
+from hilrig.analysis import analyze, load_replay
 from hilrig.cli import app
 from hilrig.errors import ReplayError
 from hilrig.replay import counterfactual, session_world
@@ -178,3 +179,19 @@ def test_collisions_fitted_in_a_process_pool_are_fitted_alike(
     with pytest.raises(ReplayError) as caught:
         session_world._fits(names, [hit, hit, quiet, hit])
     assert str(caught.value) == "collision 3: no contact force to fit a contact model to"
+
+
+def test_each_predicted_controller_gets_its_own_safety_verdict(
+    recordings: dict[str, Path], tmp_path: Path
+) -> None:
+    out = tmp_path / "predicted.parquet"
+    args = ["replay", str(recordings["adaptive"]), "--closed-loop", "-c", "fixed", "-o", str(out)]
+    assert runner.invoke(app, args).exit_code == 0
+    source = load_replay(out)
+    assert source.body_region == "hand"  # the recording's, carried by hilrig.input
+    (verdict,) = analyze(source).verdicts
+    table, _ = load_results(out)
+    force = np.linalg.norm(table[[f"force_{a}" for a in "xyz"]].to_numpy(), axis=1)
+    assert verdict.run == "fixed" and verdict.body_region == "hand"
+    assert verdict.peak_force_n == pytest.approx(force.max(), rel=1e-6)
+    assert verdict.verdict == "within" and verdict.transient_limit_n == 280.0
