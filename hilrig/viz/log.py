@@ -20,6 +20,7 @@ from hilrig.robot.model import RobotModel
 from hilrig.viz import paths, style
 from hilrig.viz.decimate import Decimation, minmax_indices, peak_indices
 from hilrig.viz.scene import RunCurves, Scene
+from hilrig.world.body import REGIONS
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -234,8 +235,29 @@ def log_scene(
             path = paths.wrist_series(names[c]) if names else paths.joint_series(f"joint{c + 1}")
             _send_thinned(rec, path, series.t_s, series.values[:, c], max_points)
     send_events(rec, scene.events.t_s, scene.events.text, scene.events.level)
+    _log_limits(rec, scene, max_points)
     poses = _log_space(rec, scene, runs, max_points, max_poses, model)
     return Logged(Decimation.of(len(t), max_points), poses)
+
+
+def _log_limits(rec: rr.RecordingStream, scene: Scene, max_points: int) -> None:
+    """|F| and the session's body region's transient and quasi-static force limits as lines
+    beside the controller input (nothing without a region or the Cartesian axes)."""
+    region = REGIONS.get(scene.session.body_region) if scene.session is not None else None
+    if region is None or not all(a in scene.axis_names for a in CARTESIAN) or len(scene.t_s) < 2:
+        return
+    xyz = [scene.axis_names.index(axis) for axis in CARTESIAN]
+    rec.log(paths.FORCE_NORM, _lines(style.FORCE_NORM, "|F| (N)"), static=True)
+    _send_thinned(rec, paths.FORCE_NORM, scene.t_s, np.linalg.norm(scene.force[:, xyz], axis=1),
+                  max_points)  # fmt: skip
+    ends = scene.t_s[[0, -1]]
+    limits = {"transient": region.transient_force_n, "quasi_static": region.quasi_static_force_n}
+    for phase, limit in limits.items():
+        if limit is None:  # no transient contact is permitted there
+            continue
+        label = f"{phase.replace('_', '-')} limit, {region.name} (N)"
+        rec.log(paths.limit_series(phase), _lines(style.LIMITS[phase], label), static=True)
+        send_scalars(rec, paths.limit_series(phase), ends, np.full(2, limit))
 
 
 def _send_thinned(

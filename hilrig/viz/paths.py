@@ -12,6 +12,9 @@
     /world/trajectory/<name>/now            Points3D: where that trajectory is at the time
     /world/trajectory/runs/<run>/{path,now} the same for each run's reference X_d + e
     /series/input/<axis>                    Scalars: the controller input, N or N*m
+    /series/input/norm, /series/input/limit_{transient,quasi_static}
+                                            Scalars: |F| and the body region's ISO/TS 15066
+                                            limits (safety.md), when the session names one
     /series/wrist/<fx..mz>                  Scalars: the wrist F/T as measured (sensor frame)
     /series/joints/<joint>                  Scalars: measured joint angles, rad
     /series/<quantity>/<axis>/<run>         Scalars: offset, damping, stiffness, zeta
@@ -71,6 +74,14 @@ def contact_lane(group: str, run: str) -> str:
 def trajectory(name: str) -> str:
     """The folder of one end trajectory (``desired``, ``actual`` or a run's name)."""
     return f"{TRAJECTORIES}/{part(name)}"
+
+
+FORCE_NORM = f"{INPUT}/norm"
+
+
+def limit_series(phase: str) -> str:
+    """The ``transient`` or ``quasi_static`` force limit's line, beside the input."""
+    return f"{INPUT}/limit_{phase}"
 
 
 def input_series(axis: str) -> str:

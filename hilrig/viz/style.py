@@ -26,6 +26,8 @@ DESIRED: RGB = (150, 150, 150)
 ACTUAL: RGB = (235, 235, 235)
 ROBOT: RGB = (200, 200, 210)
 FORCE: RGB = (255, 64, 64)
+FORCE_NORM: RGB = (255, 255, 255)  # |F| beside the ISO/TS 15066 limits
+LIMITS: dict[str, RGB] = {"transient": (255, 140, 0), "quasi_static": (220, 30, 30)}
 AXIS_COLORS: dict[str, RGB] = {
     "x": (230, 60, 60),
     "y": (60, 190, 60),

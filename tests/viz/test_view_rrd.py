@@ -3,6 +3,7 @@ official MCAP reader (recorded values), the replay engine (replayed values) and 
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -284,3 +285,22 @@ def test_a_session_with_the_controller_state_only_has_no_robot(tmp_path: Path) -
     assert not {e for e in entities if e.startswith("/world")}
     _, values = Rrd(out).scalars("/series/input/joint6")
     np.testing.assert_array_equal(values, np.arange(50.0))
+
+
+def test_the_body_region_s_limits_are_lines_beside_the_force(full: Rrd, tmp_path: Path) -> None:
+    assert not {e for e in full.entities() if "limit" in e}  # the example names no region
+    scene = scene_from_session(EXAMPLE, parse_specs(["fixed"]))
+    assert scene.session is not None
+    chest = replace(scene, session=replace(scene.session, body_region="chest"))
+    out = tmp_path / "chest.rrd"
+    save_rrd(chest, out, max_points=0, max_poses=0)
+    rrd = Rrd(out)
+    for phase, limit in (("transient", 280.0), ("quasi_static", 140.0)):
+        t, values = rrd.scalars(f"/series/input/limit_{phase}")
+        np.testing.assert_array_equal(values, [limit, limit])
+        assert (t[0], t[-1]) == pytest.approx((scene.t_s[0], scene.t_s[-1]), abs=1e-9)
+    _, norm = rrd.scalars("/series/input/norm")
+    np.testing.assert_allclose(norm, np.linalg.norm(scene.force[:, :3], axis=1), rtol=1e-6)
+    face = replace(scene, session=replace(scene.session, body_region="face"))
+    save_rrd(face, tmp_path / "face.rrd", max_points=0, max_poses=0)
+    assert "/series/input/limit_transient" not in Rrd(tmp_path / "face.rrd").entities()
