@@ -312,6 +312,7 @@ def _offline(
     for path in out:  # all of them in place, or none
         console.print(f"wrote {path}")
     console.print(_summary(replayed))
+    _print_verdicts(console, replayed)
     if closed_loop:
         for line in closed_summary(replayed):
             console.print(line, soft_wrap=True)
@@ -321,6 +322,28 @@ def _offline(
             "force source: --closed-loop predicts the force each would have met)",
             soft_wrap=True,
         )
+
+
+def _print_verdicts(console: Console, replayed: Replayed) -> None:
+    """Each run's safety verdict per collision against the recording's body region (on its
+    predicted force, closed loop); nothing when the recording names no region."""
+    session = replayed.trace.session
+    if session is None or not session.body_region:
+        return
+    from hilrig.analysis import Source, SourceKind, analyze, runs_from_frame
+    from hilrig.analysis.report import verdict_line, verdicts_table
+
+    source = Source(
+        Path(replayed.trace.source),
+        SourceKind.REPLAY,
+        runs_from_frame(replayed.table),
+        body_region=session.body_region,
+        contact_area_cm2=session.contact_area_cm2,
+    )
+    analysis = analyze(source)
+    if analysis.verdicts:
+        console.print(verdicts_table(analysis))
+    console.print(verdict_line(analysis), soft_wrap=True)
 
 
 def _summary(replayed: Replayed) -> Table:

@@ -104,6 +104,8 @@ def test_the_cli_writes_the_contract_table_with_the_fitted_world(
                for line in lines)  # fmt: skip
     assert any("collision 1 at" in line and "spring-damper along (1.00, " in line for line in lines)
     assert any(line.startswith("predicted for fixed: #1 peak ") for line in lines)
+    verdict = "safety (hand recorded, contact area 1.96 cm^2): 1 within, 0 over; smallest margin"
+    assert any(line.startswith(verdict) and "run fixed)" in line for line in lines)
     table, runs = load_results(out)
     assert list(table.columns) == column_names(runs["fixed"]["axes"])
     assert list(runs) == ["fixed"]
