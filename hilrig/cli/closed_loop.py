@@ -18,10 +18,16 @@ def closed_summary(replayed: Replayed) -> list[str]:
 
     record: dict[str, Any] = replayed.table.attrs[INPUT_KEY]["closed_loop"]
     r = record["response"]
+    loop = r["recorded_sensor_to_command_us"]
+    measured = (
+        ""
+        if loop is None
+        else f"; the loop's sensor to command p50 {loop[0]:.0f} us, p99 {loop[1]:.0f} us"
+    )
     lines = [
         f"closed loop: the arm's response: servo bandwidth {r['bandwidth_rad_s']:.1f} rad/s, "
         f"delay {1000 * r['delay_s']:.1f} ms ({r['source']}; RMS joint error "
-        f"{1000 * r['rms_rad']:.3f} mrad)"
+        f"{1000 * r['rms_rad']:.3f} mrad){measured}"
     ]
     collisions = record["collisions"]
     if not collisions:

@@ -317,6 +317,9 @@ def closed_loop_record(
             "substep_s": r.substep_s,
             "rms_rad": r.rms_rad,
             "source": r.source,
+            "recorded_sensor_to_command_us": (
+                None if world.sensor_to_command_us is None else list(world.sensor_to_command_us)
+            ),
         },
         "collisions": collisions,
         "hold_ticks": [s.hold_ticks for s in done],

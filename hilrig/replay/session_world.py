@@ -26,7 +26,7 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from hilrig.errors import ParameterError, RecordingError, ReplayError
-from hilrig.recording import read
+from hilrig.recording import inspect, read
 from hilrig.recording.schema import AXIS_NAMES
 from hilrig.replay.inputs import session_index, trace_from_state
 from hilrig.replay.trace import ForceTrace
@@ -83,6 +83,7 @@ class SessionWorld:
     response: ServoResponse
     collisions: tuple[Collision, ...]
     emulated: bool
+    sensor_to_command_us: tuple[float, float] | None = None  # the loop's p50, p99 (recorded)
 
     @property
     def t_s(self) -> Array:
@@ -167,6 +168,15 @@ def load_world(
         onset = start + int(np.searchsorted(t_s[start:stop], fit.t_on_s))
         reference = tuple(float(v) for v in contact_rec[onset])
         collisions.append(Collision(name, start, stop, fit, reference, tuple(point)))  # type: ignore[arg-type]
+    try:
+        outcome = inspect(path).outcome
+    except RecordingError:
+        outcome = None
+    delay = (
+        None
+        if outcome is None
+        else (outcome.sensor_to_command_p50_us, outcome.sensor_to_command_p99_us)
+    )
     return SessionWorld(
         trace,
         position_d,
@@ -177,6 +187,7 @@ def load_world(
         response,
         tuple(collisions),
         emulated,
+        delay,
     )
 
 
