@@ -40,6 +40,7 @@ EVENT_LOW_SHARE = 0.02
 EVENT_MIN_N = 0.5
 EVENT_MERGE_S = 1.0  # a robot that yields, leaves the body and comes back: one collision
 EVENT_PAD_S = 0.3
+CLOCK_WINDOW_S = 10.0  # the robot clock's offset is taken per window this long
 POOL_MIN_COLLISIONS = 4  # fitted in a process pool from this many (about 0.5 s each)
 
 STATE, JOINTS, COMMANDED, DESIRED, INPUT = (
@@ -124,7 +125,9 @@ def load_world(
     orientation_d = desired[[f"pose.orientation.{a}" for a in "wxyz"]].to_numpy(np.float64)
     rotation_d = _rotations(orientation_d)
     q_measured = _columns(joints, "position", 6, path)
-    t_joints = (joints.index.to_numpy() - t0) / 1e9
+    t_joints = (sample_times_ns(joints) - t0) / 1e9
+    order = np.argsort(t_joints, kind="stable")
+    t_joints, q_measured = t_joints[order], q_measured[order]
     latest = np.maximum(np.searchsorted(t_joints, t_s, side="right") - 1, 0)
     chain = CompiledChain.from_model(model)
     # where the arm was at each tick: the joint states interpolated (a sample-and-hold would
@@ -220,6 +223,40 @@ def _fits(names: Sequence[str], inputs: Sequence[FitInput]) -> list[ContactFit]:
         except ParameterError as err:
             raise ReplayError(f"{name}: {err}") from err
     return fits
+
+
+def sample_times_ns(joints: pd.DataFrame) -> NDArray[np.int64]:
+    """When each joint state was sampled, on the log clock (ns): the robot's own timestamp
+    (``publish_time``) plus the clock offset: the least receive delay of each ``CLOCK_WINDOW_S``
+    window, taken at the state that had it and interpolated between them (the offset may drift
+    slowly). The receive (log) times bunch
+    when the loop reads several states at once, which would put false steps into the arm's
+    motion. A recording without the robot's timestamps keeps its log times."""
+    log_ns = joints.index.to_numpy().astype(np.int64)
+    device_ns = joints["publish_time_ns"].to_numpy().astype(np.int64)
+    if len(log_ns) < 2 or np.array_equal(log_ns, device_ns):
+        return log_ns
+    delay = log_ns - device_ns
+    since = log_ns - log_ns[0]
+    span = int(CLOCK_WINDOW_S * 1e9)
+    window = since // span
+    if window[-1] > 0 and since[-1] - window[-1] * span < span // 2:
+        window[window == window[-1]] -= 1  # too short a last window: join it to the one before
+    at, least = [], []
+    for w in np.unique(window):
+        members = np.flatnonzero(window == w)
+        fastest = members[int(np.argmin(delay[members]))]
+        at.append(float(since[fastest]))
+        least.append(float(delay[fastest]))
+    x = since.astype(np.float64)
+    offset = np.interp(x, at, least)
+    if len(at) > 1:  # beyond the first and last: along the drift of the nearest two
+        first = (least[1] - least[0]) / (at[1] - at[0])
+        last = (least[-1] - least[-2]) / (at[-1] - at[-2])
+        offset = np.where(x < at[0], least[0] + first * (x - at[0]), offset)
+        offset = np.where(x > at[-1], least[-1] + last * (x - at[-1]), offset)
+    times: NDArray[np.int64] = device_ns + np.round(offset).astype(np.int64)
+    return times
 
 
 def collision_windows(t_s: Array, force_n: Array) -> list[tuple[int, int]]:
