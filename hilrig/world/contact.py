@@ -201,15 +201,21 @@ def _fit(
     lower = np.array([np.log(1e-3), 0.0, t_on + 1e-3 * span, 0.0, float(y.min()), 1e-4])
     upper = np.array([np.log(1e9), 1e4, t_off - 1e-3 * span, span, float(y.max()) + 1.0, 10.0])
     best: tuple[ContactModel, Vector] | None = None
+    # starts: fixed shapes from the tool's deepest travel, and from the force's peak (deepest
+    # there, then held to the end or not at all) - a yielding robot travels furthest after it
+    peak = int(np.argmax(f))
+    at_peak = min(max((float(t[peak]) - t_on) / span, 0.01), 0.99)
+    timings = [(0.3, 0.2, y.max()), (0.5, 0.0, y.max()), (0.2, 0.5, y.max()),
+               (at_peak, 0.0, y[peak]), (at_peak, 0.9 * (1.0 - at_peak), y[peak])]  # fmt: skip
     for stiffness in (30.0, 300.0, 3000.0, 30000.0):
         depth = (
             scale / stiffness
             if kind is Mechanics.SPRING_DAMPER
             else (scale / stiffness) ** (1 / HUNT_CROSSLEY_N)
         )
-        for at, hold in ((0.3, 0.2), (0.5, 0.0), (0.2, 0.5)):
+        for at, hold, travel in timings:
             guess = np.array([np.log(stiffness), 0.0, t_on + at * span, hold * span,
-                              float(y.max()) + depth, depth / span])  # fmt: skip
+                              float(travel) + depth, depth / span])  # fmt: skip
             guess = np.clip(guess, lower + 1e-9, upper - 1e-9)
 
             def residual(theta: Vector) -> Vector:
