@@ -26,18 +26,18 @@ def run() -> list[Result]:
     path = session_path()
     if not path.exists():
         write_session(path)
-    plain, judged = [], []
+    plain: list[float] = []
+    judged: list[float] = []
     verdicts = 0
-    for attempt in range(REPEATS + 1):  # the first warms up (imports, caches)
+    for attempt in range(2 * REPEATS + 1):  # the first warms up (imports, file cache)
+        # alternately with and without: neither always reads the file right after the other
+        safety = VerdictConfig(body_region="hand") if attempt % 2 else VerdictConfig()
         start = time.perf_counter()
-        analyze(load_session(path))
-        middle = time.perf_counter()
-        analysis = analyze(load_session(path), safety=VerdictConfig(body_region="hand"))
-        end = time.perf_counter()
-        verdicts = len(analysis.verdicts)
+        analysis = analyze(load_session(path), safety=safety)
+        wall = time.perf_counter() - start
         if attempt:
-            plain.append(middle - start)
-            judged.append(end - middle)
+            (judged if analysis.verdicts else plain).append(wall)
+            verdicts = max(verdicts, len(analysis.verdicts))
     base, with_verdicts = statistics.median(plain), statistics.median(judged)
     added = 100.0 * (with_verdicts - base) / base
     detail = {"plain_s": plain, "judged_s": judged, "verdicts": verdicts, "session": path.name}
