@@ -131,7 +131,7 @@ def inspect(path: str | os.PathLike[str], *, check: bool = False) -> FileInfo:
             session_problem = None
         except RecordingError as err:
             session_problem = str(err)
-        outcome, outcome_problem = _outcome(index)
+        outcome, outcome_problem = outcome_of(index)
         return FileInfo(
             path=p,
             size=index.size,
@@ -211,7 +211,7 @@ def _topic_info(index: FileIndex, channel_id: int, log: npt.NDArray[np.int64] | 
     return TopicInfo(channel.topic, kind, len(log), start, end, rate, int(intervals.max()), gaps)
 
 
-def _outcome(index: FileIndex) -> tuple[SessionOutcome | None, str | None]:
+def outcome_of(index: FileIndex) -> tuple[SessionOutcome | None, str | None]:
     """The ``outcome`` record parsed, or why it cannot be (None, None without one)."""
     values = index.values.get(OUTCOME_METADATA)
     if values is None:

@@ -12,7 +12,6 @@ are the reproduction error that comes with every prediction (``hilrig.input`` of
 from __future__ import annotations
 
 import multiprocessing as mp
-import os
 import sys
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -47,6 +46,7 @@ from hilrig.replay.closed_loop import (
     kernel_inputs,
     simulate_kernel,
 )
+from hilrig.replay.engine import local_cores
 from hilrig.replay.results import FLOAT_ROWS, INPUT_KEY, Run, frame
 from hilrig.replay.session_world import SessionWorld
 from hilrig.robot import RobotModel
@@ -230,9 +230,8 @@ def closed_loop(
 def choose_workers(runs: int, ticks: int) -> int:
     """Processes for ``runs`` closed-loop runs of ``ticks`` each: the local cores (at most one
     per run) once the runs together hold ``POOL_MIN_TICKS``, else 1 (forking costs more)."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     if runs > 1 and runs * ticks >= POOL_MIN_TICKS and "fork" in mp.get_all_start_methods():
-        return min(runs, cores or 1)
+        return min(runs, local_cores())
     return 1
 
 

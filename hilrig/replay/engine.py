@@ -139,10 +139,16 @@ def choose_jobs(runs: Sequence[Run], axis_ticks: int) -> int:
     """Processes for ``runs`` of ``axis_ticks`` axis-ticks each: the local cores when the pool
     pays (see POOL_MIN_HEAVY_AXIS_TICKS), else 1."""
     heavy = sum(1 for r in runs if not r.params.state_machine and r.law is not Law.FIXED)
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    if heavy >= 2 and heavy * axis_ticks >= POOL_MIN_HEAVY_AXIS_TICKS and (cores or 1) > 1:
-        return min(len(runs), cores or 1)
+    cores = local_cores()
+    if heavy >= 2 and heavy * axis_ticks >= POOL_MIN_HEAVY_AXIS_TICKS and cores > 1:
+        return min(len(runs), cores)
     return 1
+
+
+def local_cores() -> int:
+    """The cores this process may run on."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return cores or 1
 
 
 def _controller(run: Run, trace: ForceTrace) -> AdmittanceController:

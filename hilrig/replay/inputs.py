@@ -21,6 +21,8 @@ from numpy.typing import NDArray
 
 from hilrig.errors import RecordingError, ReplayError
 from hilrig.recording import SessionInfo, read
+from hilrig.recording.info import outcome_of
+from hilrig.recording.outcome import SessionOutcome
 from hilrig.recording.scan import index_file
 from hilrig.replay.specs import GROUP_AXES
 from hilrig.replay.tables import trace_from_table
@@ -64,6 +66,7 @@ class SessionIndex:
     topics: frozenset[str]
     session: SessionInfo | None
     controller_params: Mapping[str, object]
+    outcome: SessionOutcome | None = None  # the loop's end figures, when recorded and readable
 
 
 def session_index(path: Path) -> SessionIndex:
@@ -75,7 +78,7 @@ def session_index(path: Path) -> SessionIndex:
         raise ReplayError(str(err)) from err
     params = session.controller_params if session is not None else {}
     topics = frozenset(c.topic for c in index.channels.values())
-    return SessionIndex(topics, session, params)
+    return SessionIndex(topics, session, params, outcome_of(index)[0])
 
 
 def recorded_dt(path: Path, index: SessionIndex, log_ns: NDArray[np.int64]) -> float:

@@ -26,7 +26,7 @@ from hilrig.outputs import new_files
 from hilrig.replay.counterfactual import closed_loop
 from hilrig.replay.engine import Progress, check_table_size, replay
 from hilrig.replay.inputs import MCAP_SUFFIXES as INPUT_MCAP_SUFFIXES
-from hilrig.replay.inputs import PathLike, load_trace, session_index
+from hilrig.replay.inputs import PathLike, load_trace
 from hilrig.replay.outputs import MCAP_SUFFIXES, PARQUET_SUFFIXES, mcap_into, parquet_into
 from hilrig.replay.results import Run, peak_offsets
 from hilrig.replay.session_world import load_world
@@ -135,8 +135,7 @@ def closed_replay_file(
     world = load_world(p, model, mechanics=mechanics)
     if progress is not None:
         progress("fit", 1, 1)
-    index = session_index(p)
-    law, params, _ = recorded_controller(p, index, world.trace.axis_names)
+    law, params, _ = recorded_controller(p, world.index, world.trace.axis_names)
     runs = [Run.from_spec(spec, world.trace.axis_names) for spec in specs]
     table, _ = closed_loop(
         world,

@@ -14,10 +14,10 @@ moment: ``r = F x M / |F|^2``), its median over the contact phase, in the sensor
 
 from __future__ import annotations
 
-import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from functools import partial
 from multiprocessing import get_all_start_methods, get_context
 from pathlib import Path
 
@@ -26,9 +26,10 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from hilrig.errors import ParameterError, RecordingError, ReplayError
-from hilrig.recording import inspect, read
+from hilrig.recording import read
 from hilrig.recording.schema import AXIS_NAMES
-from hilrig.replay.inputs import session_index, trace_from_state
+from hilrig.replay.engine import local_cores
+from hilrig.replay.inputs import SessionIndex, session_index, trace_from_state
 from hilrig.replay.trace import ForceTrace
 from hilrig.robot import RobotModel
 from hilrig.robot.kinematics import CompiledChain, fk_into
@@ -84,12 +85,20 @@ class SessionWorld:
     response: ServoResponse
     collisions: tuple[Collision, ...]
     emulated: bool
-    sensor_to_command_us: tuple[float, float] | None = None  # the loop's p50, p99 (recorded)
+    index: SessionIndex  # the recording's topics, session and outcome records
 
     @property
     def t_s(self) -> Array:
         """The ticks' times from the first, s."""
         return self.trace.t_s
+
+    @property
+    def sensor_to_command_us(self) -> tuple[float, float] | None:
+        """The loop's recorded sensor-to-command p50 and p99 (us), when the file has them."""
+        outcome = self.index.outcome
+        if outcome is None:
+            return None
+        return outcome.sensor_to_command_p50_us, outcome.sensor_to_command_p99_us
 
     def reach(self, index: int) -> slice:
         """The ticks collision ``index``'s model applies to: from its start to the next's."""
@@ -171,15 +180,6 @@ def load_world(
         onset = start + int(np.searchsorted(t_s[start:stop], fit.t_on_s))
         reference = tuple(float(v) for v in contact_rec[onset])
         collisions.append(Collision(name, start, stop, fit, reference, tuple(point)))  # type: ignore[arg-type]
-    try:
-        outcome = inspect(path).outcome
-    except RecordingError:
-        outcome = None
-    delay = (
-        None
-        if outcome is None
-        else (outcome.sensor_to_command_p50_us, outcome.sensor_to_command_p99_us)
-    )
     return SessionWorld(
         trace,
         position_d,
@@ -190,7 +190,7 @@ def load_world(
         response,
         tuple(collisions),
         emulated,
-        delay,
+        index,
     )
 
 
@@ -205,24 +205,22 @@ def _fit(arguments: FitInput) -> ContactFit:
 def _fits(names: Sequence[str], inputs: Sequence[FitInput]) -> list[ContactFit]:
     """Each collision's fit, in forked processes once there are ``POOL_MIN_COLLISIONS``; raises
     ReplayError (one line, naming the collision) for one that cannot be fitted."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    workers = min(cores or 1, len(inputs))
-    fits: list[ContactFit] = []
+    workers = min(local_cores(), len(inputs))
     if workers > 1 and len(inputs) >= POOL_MIN_COLLISIONS and "fork" in get_all_start_methods():
         with ProcessPoolExecutor(workers, mp_context=get_context("fork")) as pool:
-            futures = [pool.submit(_fit, arguments) for arguments in inputs]
-            for name, future in zip(names, futures, strict=True):
-                try:
-                    fits.append(future.result())
-                except ParameterError as err:
-                    raise ReplayError(f"{name}: {err}") from err
-        return fits
-    for name, arguments in zip(names, inputs, strict=True):
+            return _named(names, [pool.submit(_fit, arguments).result for arguments in inputs])
+    return _named(names, [partial(_fit, arguments) for arguments in inputs])
+
+
+def _named(names: Sequence[str], fits: Sequence[Callable[[], ContactFit]]) -> list[ContactFit]:
+    """Each fit, its ParameterError as ReplayError naming its collision."""
+    done = []
+    for name, fit in zip(names, fits, strict=True):
         try:
-            fits.append(_fit(arguments))
+            done.append(fit())
         except ParameterError as err:
             raise ReplayError(f"{name}: {err}") from err
-    return fits
+    return done
 
 
 def sample_times_ns(joints: pd.DataFrame) -> NDArray[np.int64]:

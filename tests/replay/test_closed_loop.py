@@ -4,6 +4,7 @@ B met. A small version of the validation of docs/replay.md (``make bench`` runs 
 
 from __future__ import annotations
 
+import os
 import threading
 from pathlib import Path
 
@@ -158,7 +159,7 @@ def test_runs_in_a_process_pool_give_the_same_table(
     monkeypatch.setattr(counterfactual, "POOL_MIN_TICKS", 10**12)
     alone = closed_replay_file(recordings["fixed"], specs).table
     monkeypatch.setattr(counterfactual, "POOL_MIN_TICKS", 0)
-    monkeypatch.setattr(counterfactual.os, "sched_getaffinity", lambda pid: {0, 1})
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1})
     assert counterfactual.choose_workers(4, 10) == 2
     pooled = closed_replay_file(recordings["fixed"], specs).table
     pd.testing.assert_frame_equal(pooled, alone)
@@ -174,9 +175,9 @@ def test_collisions_fitted_in_a_process_pool_are_fitted_alike(
     hit = (world.t_s[window], world.trace.force[window, :3], world.contact_rec_m[window], None)
     quiet = (hit[0], np.zeros_like(hit[1]), hit[2], None)
     names = [f"collision {i}" for i in range(1, 5)]
-    monkeypatch.setattr(session_world.os, "sched_getaffinity", lambda pid: {0})
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0})
     alone = session_world._fits(names, [hit] * 4)
-    monkeypatch.setattr(session_world.os, "sched_getaffinity", lambda pid: {0, 1})
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1})
     assert session_world._fits(names, [hit] * 4) == alone == [c.fit] * 4
     with pytest.raises(ReplayError) as caught:
         session_world._fits(names, [hit, hit, quiet, hit])
