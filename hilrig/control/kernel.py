@@ -2,9 +2,9 @@
 
 State and parameters travel as a few packed float64/int64 arrays (row indices below) so that a
 call from Python pays numba's dispatch for five arrays, not twenty. Per tick n and axis i the
-kernel reads f[n, i], updates the group's contact state (Algorithm 2), picks b and k from the
-law, applies the Theorem 1 rate guard, re-discretises only when (b, k) changed, and integrates
-one period: offset[n] = e(t_n + dt). Nothing here allocates.
+kernel reads f[n, i], updates the group's contact state (Algorithm 2, or contact while above
+delta without it), picks b and k from the law, applies the Theorem 1 rate guard, discretises
+(``zoh.py``) and integrates one period: offset[n] = e(t_n + dt). Nothing here allocates.
 """
 
 from __future__ import annotations
@@ -15,17 +15,20 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from hilrig.control.zoh import Terms, damping_terms, is_near_critical, near_critical, terms
 from hilrig.recording.samples import ContactState
 
 # Rows of the parameter array P (NP, A).
-M, BD, KD, A1, A2, BETA, DELTA, BMIN, GROWTH, TOL, NTERMS, NSQ, DT = range(13)
+# DTM = dt/m, KX = dt^2/m.
+M, BD, KD, A1, A2, BETA, DELTA, BMIN, GROWTH, TOL, DT, DTM, KX = range(13)
 NP = 13
 # Entries of the int config cfg (NC + A): options, then each axis's group index.
 LAW, CHI, BETA_READING, INTEGRATOR, SM, GUARD, DEBOUNCE, RELEASE, HOLD = range(9)
 NC = 9
-# Rows of the float state S (NS, A): per axis, then per-group scratch (indexed by group).
-E, V, B, K, P00, P01, P10, P11, G0, G1, GABOVE, GSUMSQ, GSETTLED = range(13)
-NS = 13
+# Rows of the float state S (NS, A): per axis, then per-group scratch (indexed by group), then
+# the per-axis cache of the terms that depend on b only (CB: the b they are for; NaN at rest).
+E, V, B, K, P00, P01, P10, P11, G0, G1, GABOVE, GSUMSQ, GSETTLED, CB, CX, CE, CP = range(17)
+NS = 17
 # Rows of the int group state G (NG, A), indexed by group.
 STATE, CNT_ABOVE, CNT_BELOW, TICKS = range(4)
 NG = 4
@@ -40,66 +43,44 @@ BETA_CAP, BETA_MAX = 0, 1
 ZOH, EULER = 0, 1
 FREE, CONTACT, HOLDING, RECOVERING = (int(state) for state in ContactState)
 TANH_IS_ONE = 19.1
+# tanh(x) = x + x^3 (T1 + T2 x^2 + ... + T5 x^8) + O(x^13).
+T1, T2, T3, T4, T5 = -1.0 / 3.0, 2.0 / 15.0, -17.0 / 315.0, 62.0 / 2835.0, -1382.0 / 155925.0
+
+
+@njit(cache=True, inline="always")
+def store(P: NDArray[np.float64], S: NDArray[np.float64], i: int, k: float, z: Terms) -> None:
+    """Axis i's Phi and Gamma from ``zoh``'s (Phi00, E1, Phi11, Gamma0) for stiffness k."""
+    phi00, e1, phi11, g0 = z
+    dtm = P[DTM, i]
+    S[P00, i] = phi00
+    S[P01, i] = P[DT, i] * e1
+    S[P10, i] = -(k * dtm) * e1
+    S[P11, i] = phi11
+    S[G0, i] = g0
+    S[G1, i] = dtm * e1
 
 
 @njit(cache=True, inline="always")
 def discretise(
     P: NDArray[np.float64], S: NDArray[np.float64], i: int, b: float, k: float, zoh: bool
 ) -> None:
-    """Write Phi and Gamma of axis i with (b, k) frozen over one period into S."""
-    m = P[M, i]
+    """Write Phi and Gamma of axis i with (b, k) frozen over one period into S: the closed-form
+    ZOH of ``zoh.py`` (its b-only terms cached per axis) or semi-implicit Euler."""
     dt = P[DT, i]
+    dtm = P[DTM, i]
     if not zoh:
-        r = b * dt / m
-        S[P00, i] = 1.0 - k * dt * dt / m
+        r = b * dtm
+        S[P00, i] = 1.0 - k * P[KX, i]
         S[P01, i] = dt * (1.0 - r)
-        S[P10, i] = -k * dt / m
+        S[P10, i] = -k * dtm
         S[P11, i] = 1.0 - r
-        S[G0, i] = dt * dt / m
-        S[G1, i] = dt / m
+        S[G0, i] = dt * dtm
+        S[G1, i] = dtm
         return
-    # exp(A*dt) and Psi = int_0^dt exp(A*s) ds from the series phi_1(X) = sum X^j/(j+1)! at
-    # X = A*h, h = dt/2^nsq. By Cayley-Hamilton X^2 = -beta*X - kappa*I (beta = b*h/m,
-    # kappa = k*h^2/m), so every series in X is u*I + w*X and Horner's step Q <- I + c*X*Q is
-    # two scalar updates. Gamma = Psi[:, 1]/m keeps full relative precision where 1 - Phi would
-    # cancel. Terms and scaling are chosen per axis (controller.py) for 1e-16 truncation.
-    nsq = int(P[NSQ, i])
-    h = dt / (1 << nsq)
-    beta = b * h / m
-    kappa = k * h * h / m
-    u = 1.0
-    w = 0.0
-    for j in range(int(P[NTERMS, i]), 0, -1):
-        c = 1.0 / (j + 1)
-        u, w = 1.0 - c * kappa * w, c * (u - beta * w)
-    # Phi = I + X*Q = (1 - kappa*w)*I + (u - beta*w)*X;  Psi = h*Q.
-    a = 1.0 - kappa * w
-    g = u - beta * w
-    f00 = a
-    f01 = g * h
-    f10 = -g * kappa / h
-    f11 = a - g * beta
-    s01 = w * h * h
-    s11 = g * h
-    for _ in range(nsq):
-        n01 = (1.0 + f00) * s01 + f01 * s11
-        n11 = f10 * s01 + (1.0 + f11) * s11
-        s01 = n01
-        s11 = n11
-        a00 = f00 * f00 + f01 * f10
-        a01 = f00 * f01 + f01 * f11
-        a10 = f10 * f00 + f11 * f10
-        a11 = f10 * f01 + f11 * f11
-        f00 = a00
-        f01 = a01
-        f10 = a10
-        f11 = a11
-    S[P00, i] = f00
-    S[P01, i] = f01
-    S[P10, i] = f10
-    S[P11, i] = f11
-    S[G0, i] = s01 / m
-    S[G1, i] = s11 / m
+    if b != S[CB, i]:
+        S[CB, i] = b
+        S[CX, i], S[CE, i], S[CP, i] = damping_terms(b, dtm)
+    store(P, S, i, k, terms(S[CX, i], S[CE, i], S[CP, i], k * P[KX, i], k, P[KX, i]))
 
 
 @njit(cache=True, inline="always")
@@ -123,8 +104,15 @@ def law_gains(
         x = abs(f)
     else:
         x = group_sumsq
-    # tanh(x) rounds to exactly 1.0 in float64 from x = 19.0616 on; skip libm's 16 ns there.
-    chi = 1.0 if x >= TANH_IS_ONE else math.tanh(x)
+    # tanh(x) rounds to exactly 1.0 in float64 from x = 19.0616 on; below 1/16 (sensor noise)
+    # its Taylor series to x^11 is exact to 1e-17 relative: libm's 10-16 ns only in between.
+    if x >= TANH_IS_ONE:
+        chi = 1.0
+    elif x <= 0.0625:
+        y = x * x
+        chi = x + x * y * (((((T5 * y + T4) * y + T3) * y + T2) * y) + T1)
+    else:
+        chi = math.tanh(x)
     k = (1.0 - P[A2, i] * chi) * k_d
     if law == VARIABLE_STIFFNESS:
         return b_d, k
@@ -159,8 +147,8 @@ def gains(
 
 
 @njit(cache=True, inline="always")
-def advance(S: NDArray[np.float64], out: NDArray[np.float64], n: int, i: int, f: float) -> None:
-    """Integrate axis i over tick n with its cached Phi, Gamma; write the tick's outputs."""
+def integrate(S: NDArray[np.float64], out: NDArray[np.float64], n: int, i: int, f: float) -> None:
+    """Integrate axis i over tick n with its cached Phi, Gamma; write its offset and velocity."""
     e = S[E, i]
     v = S[V, i]
     e_next = S[P00, i] * e + S[P01, i] * v + S[G0, i] * f
@@ -169,6 +157,12 @@ def advance(S: NDArray[np.float64], out: NDArray[np.float64], n: int, i: int, f:
     S[V, i] = v_next
     out[OUT_OFFSET, n, i] = e_next
     out[OUT_VELOCITY, n, i] = v_next
+
+
+@njit(cache=True, inline="always")
+def advance(S: NDArray[np.float64], out: NDArray[np.float64], n: int, i: int, f: float) -> None:
+    """``integrate``, and the tick's damping and stiffness written beside."""
+    integrate(S, out, n, i, f)
     out[OUT_DAMPING, n, i] = S[B, i]
     out[OUT_STIFFNESS, n, i] = S[K, i]
 
@@ -184,13 +178,28 @@ def run(
     contact: NDArray[np.int8],
 ) -> int:
     """Advance the controller over every row of force (T, A); -1, or n*A+i of a non-finite f."""
+    if cfg[SM] != 0:
+        return run_machine(force, P, cfg, S, G, out, contact)
+    return run_bare(force, P, cfg, S, G, out, contact)
+
+
+@njit(cache=True)
+def run_machine(
+    force: NDArray[np.float64],
+    P: NDArray[np.float64],
+    cfg: NDArray[np.int64],
+    S: NDArray[np.float64],
+    G: NDArray[np.int64],
+    out: NDArray[np.float64],
+    contact: NDArray[np.int8],
+) -> int:
+    """``run`` with the Algorithm 2 state machine."""
     T: int = force.shape[0]
     A: int = force.shape[1]
     law = cfg[LAW]
     chi_reading = cfg[CHI]
     beta_reading = cfg[BETA_READING]
     zoh = cfg[INTEGRATOR] == ZOH
-    sm = cfg[SM] != 0
     guard = cfg[GUARD] != 0
     debounce = cfg[DEBOUNCE]
     release = cfg[RELEASE]
@@ -198,10 +207,9 @@ def run(
     # A group is busy unless it is free with no pending debounce; with no busy group, no force
     # above delta and a law whose free parameters are nominal, a tick is the cached LTI update.
     busy = 0
-    if sm:
-        for g in range(A):
-            if G[STATE, g] != FREE or G[CNT_ABOVE, g] != 0:
-                busy += 1
+    for g in range(A):
+        if G[STATE, g] != FREE or G[CNT_ABOVE, g] != 0:
+            busy += 1
     for n in range(T):
         any_above = False
         for i in range(A):
@@ -210,7 +218,7 @@ def run(
                 return n * A + i
             if abs(f) > P[DELTA, i]:
                 any_above = True
-        if not any_above and busy == 0 and (sm or law == FIXED):
+        if not any_above and busy == 0:
             for i in range(A):
                 advance(S, out, n, i, force[n, i])
                 contact[n, i] = FREE
@@ -229,9 +237,6 @@ def run(
                 S[GSETTLED, g] = 0.0
         for g in range(A):
             above = S[GABOVE, g] > 0.0
-            if not sm:
-                G[STATE, g] = CONTACT if above else FREE
-                continue
             state = G[STATE, g]
             if state == FREE or state == RECOVERING:
                 if above:
@@ -262,12 +267,12 @@ def run(
             state = G[STATE, g]
             f = force[n, i]
             k_prev = S[K, i]
-            if sm and (state == FREE or state == RECOVERING):
+            if state == FREE or state == RECOVERING:
                 b = P[BD, i]
                 k = P[KD, i]
             else:
                 b, k = law_gains(law, chi_reading, beta_reading, P, i, f, S[GSUMSQ, g])
-                if sm and state == HOLDING:
+                if state == HOLDING:
                     k = min(k, k_prev)  # sustained contact keeps the avoidance pose
             if guard:
                 k = min(k, k_prev * P[GROWTH, i])
@@ -278,8 +283,95 @@ def run(
             advance(S, out, n, i, f)
             contact[n, i] = state
         busy = 0
-        if sm:
-            for g in range(A):
-                if G[STATE, g] != FREE or G[CNT_ABOVE, g] != 0:
-                    busy += 1
+        for g in range(A):
+            if G[STATE, g] != FREE or G[CNT_ABOVE, g] != 0:
+                busy += 1
     return -1
+
+
+@njit(cache=True, error_model="numpy")
+def run_bare(
+    force: NDArray[np.float64],
+    P: NDArray[np.float64],
+    cfg: NDArray[np.int64],
+    S: NDArray[np.float64],
+    G: NDArray[np.int64],
+    out: NDArray[np.float64],
+    contact: NDArray[np.int8],
+) -> int:
+    """``run`` without the state machine: a group is in contact while one of its axes is above
+    delta, and the law's (b, k) change on (nearly) every tick (chi follows the sensor noise), so
+    every tick discretises (``gains_phases``), with the arithmetic of ``run_machine``'s path:
+    the results are the same to the bit."""
+    T: int = force.shape[0]
+    A: int = force.shape[1]
+    law = cfg[LAW]
+    chi_reading = cfg[CHI]
+    beta_reading = cfg[BETA_READING]
+    zoh = cfg[INTEGRATOR] == ZOH
+    guard = cfg[GUARD] != 0
+    for n in range(T):
+        for g in range(A):
+            S[GABOVE, g] = 0.0
+            S[GSUMSQ, g] = 0.0
+        for i in range(A):
+            f = force[n, i]
+            if not math.isfinite(f):
+                return n * A + i
+            g = cfg[NC + i]
+            if abs(f) > P[DELTA, i]:
+                S[GABOVE, g] = 1.0
+            if chi_reading == CHI_GROUP_SQUARE:
+                S[GSUMSQ, g] += f * f
+        for g in range(A):
+            G[STATE, g] = CONTACT if S[GABOVE, g] > 0.0 else FREE
+        if law == FIXED:  # (b, k) are those it was discretised with at rest
+            for i in range(A):
+                advance(S, out, n, i, force[n, i])
+                contact[n, i] = G[STATE, cfg[NC + i]]
+            continue
+        gains_phases(law, chi_reading, beta_reading, zoh, guard, P, cfg, S, force, out, n)
+        for i in range(A):  # (b, k) are in out already
+            integrate(S, out, n, i, force[n, i])
+            contact[n, i] = G[STATE, cfg[NC + i]]
+    return -1
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def gains_phases(
+    law: int,
+    chi_reading: int,
+    beta_reading: int,
+    zoh: bool,
+    guard: bool,
+    P: NDArray[np.float64],
+    cfg: NDArray[np.int64],
+    S: NDArray[np.float64],
+    force: NDArray[np.float64],
+    out: NDArray[np.float64],
+    n: int,
+) -> None:
+    """``run_bare``'s tick n up to the integration: (b, k) of every axis into ``out``, then Phi
+    and Gamma into S. Each phase's iterations are independent, so the CPU overlaps the axes:
+    the near-critical series for every axis (no branch; the cached b terms assumed), then the
+    full discretisation where that did not apply."""
+    A: int = force.shape[1]
+    for i in range(A):
+        f = force[n, i]
+        b, k = law_gains(law, chi_reading, beta_reading, P, i, f, S[GSUMSQ, cfg[NC + i]])
+        if guard:
+            k = min(k, S[K, i] * P[GROWTH, i])
+        out[OUT_DAMPING, n, i] = b
+        out[OUT_STIFFNESS, n, i] = k
+    if zoh:
+        for i in range(A):
+            k = out[OUT_STIFFNESS, n, i]
+            kappa = k * P[KX, i]
+            store(P, S, i, k, near_critical(S[CX, i], S[CE, i], S[CP, i], kappa, k))
+    for i in range(A):
+        b = out[OUT_DAMPING, n, i]
+        k = out[OUT_STIFFNESS, n, i]
+        if not zoh or b != S[CB, i] or not is_near_critical(S[CX, i], k * P[KX, i]):
+            discretise(P, S, i, b, k, zoh)
+        S[B, i] = b
+        S[K, i] = k

@@ -7,7 +7,6 @@ refused with one ParameterError line when invalid or unstable.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -44,16 +43,6 @@ def resolve_params(params: ParamsLike) -> AdmittanceParams:
     return from_mapping(values, preset(base) if base is not None else None)
 
 
-def _series_terms(theta: float) -> tuple[int, int]:
-    """(Taylor terms, doublings) so that phi_1's series at ||A*h|| <= 0.5 is good to 1e-16."""
-    nsq = max(0, math.ceil(math.log2(theta / 0.5))) if theta > 0.5 else 0
-    theta /= 2.0**nsq
-    terms = 1
-    while theta**terms / math.factorial(terms + 1) > 1e-16 and terms < 30:
-        terms += 1
-    return terms, nsq
-
-
 @dataclass(frozen=True)
 class Packed:
     """Validated parameters packed for the kernel (see kernel.py for the row layout)."""
@@ -81,9 +70,8 @@ class Packed:
             P[K.GROWTH] = np.exp(found.gamma * dt)
         P[K.TOL] = resolved.per_axis("settle_tol", axes)
         P[K.DT] = dt
-        for i in range(axes):
-            theta = dt * max(1.0, (found.k_max[i] + found.b_max[i]) / P[K.M, i])
-            P[K.NTERMS, i], P[K.NSQ, i] = _series_terms(theta)
+        P[K.DTM] = dt / P[K.M]
+        P[K.KX] = dt * dt / P[K.M]
         cfg = np.zeros(K.NC + axes, dtype=np.int64)
         cfg[K.LAW] = list(Law).index(law)
         cfg[K.CHI] = list(ChiReading).index(resolved.chi)
@@ -104,6 +92,7 @@ class Packed:
         S = np.zeros((K.NS, self.axes))  # noqa: N806
         S[K.B] = self.P[K.BD]
         S[K.K] = self.P[K.KD]
+        S[K.CB] = np.nan  # no b cached yet
         zoh = self.params.integrator is Integrator.ZOH
         for i in range(self.axes):
             K.discretise(self.P, S, i, S[K.B, i], S[K.K, i], zoh)

@@ -319,9 +319,9 @@ def validate(law: Law, params: AdmittanceParams, axes: int, dt: float) -> AxisBo
     return found
 
 
-#: Largest dt*(b + k)/m of the exact (zoh) discretisation: its scaling and squaring is accurate
-#: to about 1e-9 (relative) up to here; beyond, precision goes, and from about 1e19 its numbers
-#: overflow (a table of NaN).
+#: Largest dt*(b + k)/m of the exact (zoh) discretisation. Its closed form stays finite beyond,
+#: but a few ulp of the inputs move exp(A dt) by about ||A dt||^2 ulp (1e-4 relative here), so
+#: such a step no longer resolves the dynamics it discretises.
 MAX_STEP_STIFFNESS = 1e6
 #: Least fraction by which the slowest mode must decay per tick: below it the discretised
 #: filter's spectral radius is 1 in float64 and an offset would never return to rest.
@@ -338,7 +338,7 @@ def _check_discretisation(
     for i in range(m.shape[0]):
         b_max, k_max = float(found.b_max[i]), float(found.k_max[i])
         if integrator is Integrator.ZOH:
-            rate = (k_max + b_max) / m[i]  # as packed.py scales the series
+            rate = (k_max + b_max) / m[i]
             if not dt * rate <= MAX_STEP_STIFFNESS:
                 raise ParameterError(
                     f"m = {m[i]:g}, b_d = {b_max:g}, k_d = {k_max:g} on axis {i}: "

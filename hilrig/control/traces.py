@@ -73,8 +73,9 @@ def simulate(
     """Run a whole force trace (T, A) (or (T,) for one axis) through a controller from rest.
 
     ``law`` is a law name or a controller (whose law, params and dt are used; it is not
-    modified). Raises NonFiniteForceError before integrating anything if force has NaN/inf,
-    ParameterError for invalid or unstable parameters.
+    modified). Raises NonFiniteForceError naming the first NaN/inf of force (found by the
+    kernel as it goes, so a finite trace is read once), ParameterError for invalid or unstable
+    parameters.
     """
     trace = _trace(force)
     if isinstance(law, AdmittanceController):
@@ -87,7 +88,6 @@ def simulate(
         if dt is None or params is None:
             raise ParameterError("dt and params are required with a law name")
         controller = AdmittanceController(Packed.build(law, params, trace.shape[1], dt))
-    refuse_nonfinite(trace)
     T, A = trace.shape  # noqa: N806 - kernel.py's notation
     out = np.empty((len(OUTPUTS), T, A))
     contact = np.empty((T, A), dtype=np.int8)

@@ -12,6 +12,11 @@ Semantics are those of the reference path (pinocchio FK/IK, :class:`SafetyClamp`
 ``tests/rig/test_tick_kernel.py``: a tick is *fresh* when the sensor and the robot are, and the
 compensated input is finite; the controller steps every tick, on the last fresh input otherwise;
 stale input, a command fault or a protective stop makes the tick a hold (brake step).
+
+Numba caches this kernel (``cache=True``) with the control kernel compiled into it, but keys the
+cache on this file alone: a change to ``hilrig/control/kernel.py`` must come with a change to
+this file, or a checkout that already has a cache keeps ticking with the old control kernel
+(last done for the control kernel's closed-form discretisation).
 """
 
 from __future__ import annotations
