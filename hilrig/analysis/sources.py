@@ -209,21 +209,31 @@ def runs_from_frame(frame: pd.DataFrame) -> tuple[Run, ...]:
         raise AnalysisError(f"not a replay table: missing {absent}")
     if frame.empty:
         raise AnalysisError("a replay table without rows")
-    runs = []
-    for name, rows in frame.groupby("run", sort=False, observed=True):
-        rows = rows.sort_values("t_s", kind="stable")
-        runs.append(
-            Run(
-                name=str(name),
-                law=str(rows["law"].iloc[0]),
-                axes=axes,
-                t_s=rows["t_s"].to_numpy(dtype=np.float64),
-                force=rows[[f"force_{a}" for a in axes]].to_numpy(dtype=np.float64),
-                offset=rows[[f"offset_{a}" for a in axes]].to_numpy(dtype=np.float64),
-                offset_rate=rows[[f"velocity_{a}" for a in axes]].to_numpy(dtype=np.float64),
-            )
-        )
-    return tuple(runs)
+    names = frame["run"].unique()
+    groups = (
+        [(names[0], frame)] if len(names) == 1 else frame.groupby("run", sort=False, observed=True)
+    )
+    return tuple(_run(str(name), rows, axes) for name, rows in groups)
+
+
+def _run(name: str, rows: pd.DataFrame, axes: tuple[str, ...]) -> Run:
+    """One run's rows as a Run, sorted by ``t_s`` (stable); only the arrays taken are copied."""
+    t_s = rows["t_s"].to_numpy(dtype=np.float64)
+    order = None if bool(np.all(t_s[1:] >= t_s[:-1])) else np.argsort(t_s, kind="stable")
+
+    def block(quantity: str) -> FloatArray:
+        values = rows[[f"{quantity}_{a}" for a in axes]].to_numpy(dtype=np.float64)
+        return values if order is None else values[order]
+
+    return Run(
+        name=name,
+        law=str(rows["law"].iloc[0]),
+        axes=axes,
+        t_s=t_s if order is None else t_s[order],
+        force=block("force"),
+        offset=block("offset"),
+        offset_rate=block("velocity"),
+    )
 
 
 def find_inputs(paths: Iterable[Path], *, exclude: Path | None = None) -> list[Path]:

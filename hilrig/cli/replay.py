@@ -10,6 +10,7 @@ import typer
 
 from hilrig.cli.app import app
 from hilrig.cli.errors import one_line_errors
+from hilrig.cli.options import ControllerOption, SetOption, SweepOption
 from hilrig.rig.kinds import RigKind
 
 if TYPE_CHECKING:
@@ -35,29 +36,9 @@ def replay_command(
             show_default=False,
         ),
     ],
-    controller: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--controller",
-            "-c",
-            help="A controller: LAW or NAME=LAW (adaptive, variable-stiffness, fixed). "
-            "Repeat for several; default: all three laws.",
-        ),
-    ] = None,
-    setting: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--set",
-            help="NAME.\\[cartesian.|joint.]PARAM=VALUE, e.g. adaptive.a1=10 (repeatable).",
-        ),
-    ] = None,
-    sweep: Annotated[
-        list[str] | None,
-        typer.Option(
-            help="NAME.[GROUP.]PARAM=START:STOP:COUNT or =V1,V2,..; sweeps of one controller "
-            "run as a grid (repeatable).",
-        ),
-    ] = None,
+    controller: ControllerOption = None,
+    setting: SetOption = None,
+    sweep: SweepOption = None,
     out: Annotated[
         list[Path] | None,
         typer.Option(

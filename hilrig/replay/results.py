@@ -9,6 +9,12 @@ ratio b/(2 sqrt(m k))), all float64, and ``contact_<axis>`` (int8 ContactState c
 axis's group: 0 free, 1 contact, 2 holding, 3 recovering). Rows are grouped by run, in the
 order the runs were given, ticks ascending.
 
+In a result file the six per-axis quantities are float32 by default (:func:`stored_float32`):
+each value is the float64 one rounded to nearest, off by at most :func:`float32_error` of it
+(2**-24 relative); ``t_s`` stays float64 (in float32 an hour's times would be 0.24 ms apart,
+a quarter of a 1 kHz tick, and the recorded ticks' jitter would be lost), ``contact_<axis>``
+int8. A column with a value beyond float32's range (3.4e38) is kept float64.
+
 The parameters of every run are ``table.attrs["hilrig.runs"]`` (and the Parquet schema
 metadata key ``hilrig.runs``): JSON ``{run name: {"law", "controller", "settings", "dt_s",
 "axes", "params"}}``, ``params`` being every AdmittanceParams field for the input's axes
@@ -37,6 +43,12 @@ CONTACT = "contact"
 #: and zeta (filled afterwards).
 FLOAT_ROWS = {quantity: row for row, quantity in enumerate((*OUTPUTS, "force", "zeta"))}
 _BYTES_PER_AXIS_ROW = len(FLOAT_ROWS) * 8 + 1
+#: Rounding a float64 to float32 (to nearest) errs by at most this fraction of the value
+#: (the unit roundoff)...
+FLOAT32_RELATIVE_ERROR = 2.0**-24
+#: ... or, below float32's normal range (2**-126), by at most this much (half the subnormal
+#: spacing; smaller values round to 0).
+FLOAT32_ABSOLUTE_ERROR = 2.0**-150
 
 
 @dataclass(frozen=True)
@@ -103,6 +115,18 @@ def column_names(axis_names: Sequence[str]) -> list[str]:
     for axis in axis_names:
         names += [f"{q}_{axis}" for q in QUANTITIES] + [f"{CONTACT}_{axis}"]
     return names
+
+
+def stored_float32(name: str) -> bool:
+    """Whether column ``name`` is one of the per-axis quantities a result file may store as
+    float32 (``force_x`` .. ``zeta_joint6``; not ``t_s``)."""
+    quantity, _, axis = name.partition("_")
+    return quantity in QUANTITIES and bool(axis)
+
+
+def float32_error(value: float) -> float:
+    """The largest |x - float32(x)| for |x| <= ``value`` (in x's unit), within float32's range."""
+    return max(FLOAT32_RELATIVE_ERROR * abs(value), FLOAT32_ABSOLUTE_ERROR)
 
 
 def table_bytes(axes: int, rows: int) -> int:

@@ -69,8 +69,8 @@ def trace_from_table(path: Path, *, resample: bool = False) -> ForceTrace:
     if not wanted:
         raise ReplayError(f"{path}: no force columns: fx, fy, fz and/or tau1..tau6 are needed")
     values = table.numbers([TIME, *(c for c, _ in wanted)])
-    t = values[:, 0]
-    force = np.ascontiguousarray(values[:, 1:])
+    t = values[0]
+    force = np.ascontiguousarray(values[1:].T)
     names = tuple(axis for _, axis in wanted)
     table.check_times(t)
     table.check_finite(force, [c for c, _ in wanted], allow_nan=resample)
@@ -164,25 +164,34 @@ class _Table:
         return f"{self.path}: column {column}, row {row}{line}"
 
     def numbers(self, names: list[str]) -> NDArray[np.float64]:
-        """The columns ``names`` as float64 (rows, len(names)); the time column (the first)
-        may hold timestamps or durations (s from its first row); refuses anything else."""
+        """The columns ``names`` as float64 rows (len(names), rows); the time column (the
+        first) may hold timestamps or durations (s from its first row); refuses anything else.
+        Parquet number columns go from Arrow to NumPy without a pandas frame between."""
         try:
             if self.csv:
                 frame = pd.read_csv(self.path, usecols=names)
+                columns: dict[str, pd.Series | pa.ChunkedArray] = {n: frame[n] for n in names}
             else:
-                frame = pd.read_parquet(self.path, columns=names)
+                table = pq.read_table(self.path, columns=names)
+                columns = {n: table.column(n) for n in names}
         except (OSError, ValueError, pd.errors.ParserError, pa.ArrowException) as err:
             raise ReplayError(f"{self.path}: cannot read: {_first_line(err)}") from err
-        out = np.empty((len(frame), len(names)))
+        out = np.empty((len(names), len(next(iter(columns.values())))))
         for i, name in enumerate(names):
-            column = frame[name]
+            found = columns[name]
+            if isinstance(found, pa.ChunkedArray):
+                if pa.types.is_floating(found.type) or pa.types.is_integer(found.type):
+                    out[i] = found.cast(pa.float64(), safe=False).to_numpy()  # null -> NaN
+                    continue
+                found = found.to_pandas()
+            column = found
             kind = column.dtype.kind
             if kind in "fiu":
-                out[:, i] = column.to_numpy(dtype=np.float64, na_value=np.nan)
+                out[i] = column.to_numpy(dtype=np.float64, na_value=np.nan)
             elif kind in "Mm" and name == TIME:
-                out[:, i] = _seconds(column)
+                out[i] = _seconds(column)
             elif kind == "O" or isinstance(column.dtype, pd.CategoricalDtype | pd.StringDtype):
-                out[:, i] = self._coerced(name, column)
+                out[i] = self._coerced(name, column)
             else:
                 what = (
                     "times must be numbers (s) or timestamps"

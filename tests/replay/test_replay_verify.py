@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -21,13 +22,19 @@ from hilrig.replay.verify import summary_lines, verify
 from hilrig.rig import SessionConfig, record_session
 
 
-def test_a_real_recording_replays_with_zero_difference() -> None:
+def test_a_real_recording_of_an_earlier_kernel_replays_to_rounding() -> None:
+    # The example was recorded before the kernel's discretisation became a closed form (it was
+    # a series truncated at 1e-16): today's replay differs from it by rounding only. A session
+    # recorded by this code replays with zero difference (the test below).
     report = verify(EXAMPLE)
     assert report.ok
     assert report.law is Law.ADAPTIVE and report.dt_s == 0.002 and report.ticks == 3499
     assert report.params_source == "the recording's session metadata"
-    assert all(d.size == 0.0 for d in report.largest)
-    assert summary_lines(report)[-1] == "OK: largest difference 0 (tolerance 1e-12)"
+    assert all(d.size <= 1e-14 for d in report.largest)
+    assert re.fullmatch(
+        r"OK: largest difference (0|\d(\.\d+)?e-1[4-9]) \(tolerance 1e-12\)",
+        summary_lines(report)[-1],
+    )
 
 
 def test_altered_parameter_metadata_fails_naming_the_difference_and_where(tmp_path: Path) -> None:
