@@ -64,3 +64,11 @@ class ViewError(HilrigError):
 
 class OutputError(HilrigError):
     """An output cannot be written as asked: it exists, or its folder is missing or read-only."""
+
+
+class StudyError(HilrigError):
+    """A study cannot be indexed, curated or reported as asked (bad folder, study file, filter)."""
+
+
+class SweepError(HilrigError):
+    """A parameter sweep cannot run as asked: bad sources, output folder, engine or cluster."""

@@ -56,10 +56,12 @@ def demo(
     ] = Path("build/demo"),
 ) -> None:
     """The paper's simulations, then its end-effector and body collisions on the emulated rig,
-    each replayed through the three laws, compared, and saved as a Rerun view (.rrd)."""
+    each replayed through the three laws, compared, and saved as a Rerun view (.rrd); last, a
+    small study (4 volunteers x 2 controllers) and its HTML report."""
     from rich.console import Console
     from rich.text import Text
 
+    from hilrig.cli.demo_study import run_study
     from hilrig.cli.paper import ELSEWHERE, check_outputs
     from hilrig.cli.session_output import print_result
     from hilrig.errors import OutputError
@@ -89,14 +91,17 @@ def demo(
         peaks[session.scenario] = peak_offsets(result.path)
         compare_and_view(console, result.path)
     console.print(peaks_table(peaks))
+    run_study(console, out)
 
 
 def outputs(out: Path) -> list[Path]:
     """Every file the demo writes into ``out``."""
+    from hilrig.cli.demo_study import study_outputs
     from hilrig.paper.reproduce import output_names
 
     paths = [out / "paper" / name for name in output_names()]
-    return paths + [out / f"{s.scenario}{suffix}" for s in SESSIONS for suffix in OUTPUTS]
+    paths += [out / f"{s.scenario}{suffix}" for s in SESSIONS for suffix in OUTPUTS]
+    return paths + study_outputs(out)
 
 
 def record(session: DemoSession, out: Path) -> SessionResult:

@@ -8,7 +8,9 @@ Each name mirrors its source; tests/cli/test_cli_options.py pins them together.
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Annotated
+
+import typer
 
 if TYPE_CHECKING:
     from hilrig.control import Law
@@ -46,3 +48,30 @@ class LawOption(StrEnum):
         from hilrig.control import Law
 
         return Law(self.value)
+
+
+#: The controllers, settings and sweeps of ``hilrig replay`` and ``hilrig sweep`` (one parser:
+#: hilrig.replay.parse_specs).
+ControllerOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--controller",
+        "-c",
+        help="A controller: LAW or NAME=LAW (adaptive, variable-stiffness, fixed). "
+        "Repeat for several; default: all three laws.",
+    ),
+]
+SetOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--set",
+        help="NAME.\\[cartesian.|joint.]PARAM=VALUE, e.g. adaptive.a1=10 (repeatable).",
+    ),
+]
+SweepOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        help="NAME.[GROUP.]PARAM=START:STOP:COUNT or =V1,V2,..; sweeps of one controller "
+        "run as a grid (repeatable).",
+    ),
+]

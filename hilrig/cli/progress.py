@@ -23,6 +23,9 @@ PHASES = {
     "write": "writing ticks",
     "fit": "fitting the world",
     "closed": "closed-loop runs",
+    "indexing": "reading new recordings",
+    "analysing": "analysing sessions",
+    "figures": "drawing figures",
 }
 #: Least seconds between two redraws.
 REDRAW_S = 0.1

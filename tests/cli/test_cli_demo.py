@@ -47,7 +47,15 @@ def test_demo_writes_the_paper_tables_sessions_comparisons_and_views(tmp_path: P
         runs = ("recorded", "adaptive", "variable-stiffness", "fixed")
         assert {f"/series/offset/x/{r}" for r in runs} <= view.entities()
         assert f"view: rerun {out / scenario}.rrd" in result.stdout
-    assert not [p for p in out.rglob(".*")]  # no temporary left
+    study = out / "study"
+    assert "study (4 volunteers x adaptive, fixed, hand-contact)" in result.stdout
+    assert len(list(study.rglob("*.mcap"))) == 8  # 4 volunteers x 2 controllers, once each
+    assert (study / "simulation.toml").exists()
+    report = out / "study-report.html"
+    assert f"wrote {report}: 8 sessions of 4 subjects, 0 excluded" in result.stdout
+    assert "adaptive vs fixed: 4 subjects saw both" in report.read_text(encoding="utf-8")
+    # no temporary left (the study's catalogue and analyses are kept in .hilrig-study)
+    assert [p.relative_to(out) for p in out.rglob(".*")] == [Path("study/.hilrig-study")]
     # a second demo into the same folder overwrites nothing and says so before any work
     files = {p: p.stat().st_mtime_ns for p in out.rglob("*")}
     again = demo(out)
