@@ -22,7 +22,11 @@ from hilrig.cli import (  # noqa: F401  (register their commands)
     record,
     recording,
     replay,
+    report,
     rig,
+    study,
+    study_simulate,
+    sweep,
     view,
 )
 from hilrig.cli.app import app

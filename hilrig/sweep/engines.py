@@ -1,0 +1,214 @@
+"""Where a sweep's tasks run: a local process pool, or Ray (one machine or a cluster).
+
+Both run the same function (:func:`hilrig.sweep.tasks.run_task`) and yield its results as
+tasks finish, in any order. Scheduling, retries and placement are the engine's own:
+
+- ``local``: a ``ProcessPoolExecutor`` of forked workers (this process's imports inherited).
+  A worker that dies breaks the pool: the unfinished tasks run again on a new pool, up to
+  ``MAX_RETRIES`` broken pools (then the sweep stops with one line, and a rerun completes it).
+  Ctrl-C lets the running tasks finish and drops the rest.
+- ``ray``: each task a Ray remote task (one CPU), retried by Ray up to ``MAX_RETRIES`` times
+  when its worker or node dies; at most ``IN_FLIGHT_PER_CPU`` tasks per cluster CPU are
+  submitted at once (``ray.wait`` frees a slot), so a huge sweep never floods the scheduler.
+  Ray is imported here only, when this engine runs (an optional extra: ``hilrig[ray]``).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import multiprocessing
+import os
+import signal
+import socket
+import sys
+import warnings
+from collections.abc import Generator, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import replace
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from hilrig.errors import SweepError
+from hilrig.sweep.tasks import Task, TaskResult, run_task
+
+ENGINES = ("local", "ray")
+#: Ray retries a task whose worker or node died this many times, and the local engine replaces
+#: a pool broken by a dead worker this many times (a task's partitions are rewritten whole,
+#: never appended to; one found done is not run again).
+MAX_RETRIES = 3
+#: Tasks submitted to Ray at once, per CPU of the cluster.
+IN_FLIGHT_PER_CPU = 2
+#: Seconds to wait for an --address to answer before calling it unreachable.
+CONNECT_TIMEOUT_S = 5.0
+INSTALL_HINT = "pip install 'hilrig[ray]'"
+PR_SET_PDEATHSIG = 1  # Linux prctl: the signal a process gets when its parent ends
+
+
+class SweepWarning(UserWarning):
+    """A sweep recovered from a fault (a local worker died; its unfinished tasks run again)."""
+
+
+def local_results(
+    tasks: Sequence[Task], root: Path, *, tables: bool, workers: int
+) -> Iterator[TaskResult]:
+    """Each task's result from a pool of ``workers`` processes, as they finish. When a worker
+    dies (killed, out of memory) the pool breaks: the tasks it had not finished run again on a
+    new pool (with a warning), up to ``MAX_RETRIES`` times; then SweepError."""
+    left = list(tasks)
+    for attempt in range(MAX_RETRIES + 1):
+        if attempt:
+            warnings.warn(
+                f"a worker process died (killed, or out of memory): {len(left)} unfinished "
+                f"tasks run again on a new pool (retry {attempt} of {MAX_RETRIES})",
+                SweepWarning,
+                stacklevel=2,
+            )
+        left = yield from _pool_results(left, root, tables=tables, workers=workers)
+        if not left:
+            return
+    raise SweepError(
+        f"worker processes died {MAX_RETRIES + 1} times (killed, or out of memory); the "
+        "finished tasks are kept: run the same command again to complete the sweep"
+    )
+
+
+def _pool_results(
+    tasks: Sequence[Task], root: Path, *, tables: bool, workers: int
+) -> Generator[TaskResult, None, list[Task]]:
+    """Each task's result from one pool, as they finish; returns the tasks it lost to a
+    broken pool (a worker that died), in their order."""
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+    sys.stdout.flush()
+    sys.stderr.flush()
+    context = multiprocessing.get_context(method)
+    size = max(1, min(workers, len(tasks)))
+    pool = ProcessPoolExecutor(size, mp_context=context, initializer=_worker_init)
+    lost: list[int] = []
+    try:
+        pending: dict[Future[TaskResult], int] = {}
+        for index, task in enumerate(tasks):
+            try:
+                pending[pool.submit(run_task, task, root, tables=tables)] = index
+            except BrokenProcessPool:
+                lost.extend(range(index, len(tasks)))
+                break
+        while pending:
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                index = pending.pop(future)
+                try:
+                    result = future.result()
+                except BrokenProcessPool:
+                    lost.append(index)
+                else:
+                    yield result
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    return [tasks[index] for index in sorted(lost)]
+
+
+def _worker_init() -> None:
+    """A pool worker: Ctrl-C is the sweep's to handle (its running tasks finish, the rest
+    are dropped), and on Linux the worker ends with the sweep's process, however that ends."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        libc = ctypes.util.find_library("c")
+        if libc is not None:
+            ctypes.CDLL(libc).prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+
+
+def import_ray() -> ModuleType:
+    """The ``ray`` module; SweepError (one line, how to install it) when it is not installed."""
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")  # no usage reports unless asked
+    try:
+        import ray
+    except ImportError:
+        message = f"--engine ray needs Ray, which is not installed: {INSTALL_HINT}"
+        raise SweepError(message) from None
+    return ray
+
+
+def cluster_address(address: str | None) -> str | None:
+    """The cluster to join: ``address``, else ``RAY_ADDRESS``, else None (a local instance)."""
+    return address or os.environ.get("RAY_ADDRESS") or None
+
+
+def check_reachable(address: str | None) -> None:
+    """Refuse, in one line, a ``HOST:PORT`` address (``ray://`` too) where nothing answers;
+    ``auto`` and no address are left to Ray."""
+    if address is None or address == "auto":
+        return
+    shown = address if address == os.environ.get("RAY_ADDRESS") else f"--address {address}"
+    host, sep, port = address.removeprefix("ray://").rpartition(":")
+    if not sep or not port.isdigit() or not host:
+        raise SweepError(f"{shown}: expected HOST:PORT of a Ray head (e.g. 10.0.0.5:6379)")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), CONNECT_TIMEOUT_S).close()
+    except OSError as err:
+        reason = err.strerror or type(err).__name__
+        raise SweepError(
+            f"{shown}: no Ray cluster answers there ({reason}); start one with "
+            "`ray start --head`, or check the address"
+        ) from None
+
+
+def ray_results(
+    tasks: Sequence[Task],
+    root: Path,
+    *,
+    tables: bool,
+    address: str | None = None,
+    workers: int | None = None,
+) -> Iterator[TaskResult]:
+    """Each task's result from Ray remote tasks, as they finish. Joins the cluster at
+    ``address`` (else ``RAY_ADDRESS``), else starts a local instance of ``workers`` CPUs; one
+    this call connected or started is shut down at the end."""
+    ray = import_ray()
+    target = cluster_address(address)
+    check_reachable(target)
+    started = not ray.is_initialized()
+    if started:
+        options: dict[str, Any] = {"logging_level": "WARNING", "log_to_driver": False}
+        if target is None:
+            options |= {"num_cpus": workers, "include_dashboard": False}
+        try:
+            ray.init(address=target, **options)
+        except (ConnectionError, RuntimeError, ValueError) as err:
+            message = " ".join(str(err).split())
+            raise SweepError(f"cannot join the Ray cluster at {target}: {message}") from None
+    remote = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(ray_task)
+    limit = max(2, IN_FLIGHT_PER_CPU * int(ray.cluster_resources().get("CPU", 1)))
+    queue = iter(tasks)
+    pending: dict[Any, Task] = {}
+    try:
+        while True:
+            for task in queue:
+                pending[remote.remote(task, root, tables)] = task
+                if len(pending) >= limit:
+                    break
+            if not pending:
+                return
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            for ref in ready:
+                task = pending.pop(ref)
+                try:
+                    yield ray.get(ref)
+                except ray.exceptions.RayError as err:  # retries exhausted, or cancelled
+                    message = " ".join(str(err).split())[:300]
+                    yield TaskResult(task.source, task.run, error=f"Ray: {message}")
+    finally:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        if started:
+            ray.shutdown()
+
+
+def ray_task(task: Task, root: Path, tables: bool) -> TaskResult:
+    """:func:`run_task` in a Ray worker; its result names the node it ran on."""
+    import ray
+
+    result = run_task(task, root, tables=tables)
+    return replace(result, node=ray.get_runtime_context().get_node_id())
