@@ -44,7 +44,7 @@ __all__ = [
 
 QUEUE_BATCHES = 50  # 5 s of batches: a viewer stalled longer costs dropped batches
 START_S = 30.0  # the feed's start-up (imports, the stream, a spawned viewer)
-FINISH_S = 10.0  # the feed's last flush after the session
+FINISH_S = 30.0  # the feed's last flush after the session (a loaded machine takes its time)
 
 
 @dataclass(frozen=True)

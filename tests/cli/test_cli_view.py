@@ -17,7 +17,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "viz"))
 from rrd_helpers import Rrd
-from servers import impostor
+from servers import impostor, rerun_save_server
 
 from hilrig.viz.sinks import rerun_binary
 
@@ -97,21 +97,9 @@ def test_long_sessions_say_they_are_decimated(tmp_path: Path) -> None:
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")  # what `rerun --save` writes
 def test_connect_streams_to_a_running_rerun_server(tmp_path: Path) -> None:
     out = tmp_path / "received.rrd"
-    port = free_port()
-    server = subprocess.Popen(
-        [str(RERUN), "--save", str(out), "--port", str(port), "--bind", "127.0.0.1"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    try:
-        wait_for(lambda: listening(port))
-        url = f"rerun+http://127.0.0.1:{port}/proxy"
+    with rerun_save_server(out) as url:
         result = hilrig("view", str(EXAMPLE), "-c", "fixed", "--connect", url)
         assert result.returncode == 0, result.stderr
-        wait_for(lambda: out.exists() and out.stat().st_size > 0)
-    finally:
-        server.send_signal(signal.SIGINT)
-        server.wait(30)
     rrd = Rrd(out)
     _, values = rrd.scalars("/series/offset/x/fixed")
     assert len(values) == 3499

@@ -6,9 +6,7 @@ recording complete."""
 from __future__ import annotations
 
 import multiprocessing
-import signal
 import socket
-import subprocess
 import threading
 import time
 import warnings
@@ -20,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rrd_helpers import Rrd
-from servers import impostor
+from servers import impostor, rerun_save_server
 
 from hilrig.errors import ViewError
 from hilrig.recording import EventKind, EventRecord, SessionInfo, inspect, load
@@ -45,7 +43,7 @@ from hilrig.viz import paths
 from hilrig.viz.live import LiveView, check_sink, event_line
 from hilrig.viz.log import FORCE_SCALE_M_PER_N
 from hilrig.viz.scene import RECORDED
-from hilrig.viz.sinks import Sink, SinkKind, grpc_url, rerun_binary
+from hilrig.viz.sinks import Sink, SinkKind, grpc_url
 
 T0_NS = 1_000_000_000_000  # a multiple of 20 ms: every 20th row starts a period
 TICK_NS = 1_000_000
@@ -362,19 +360,9 @@ def streamed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Session
     """A 3 s session streaming its live view to ``rerun --save`` (Rerun's gRPC server, no
     window) on loopback; the server's file once it has stopped."""
     tmp = tmp_path_factory.mktemp("streamed")
-    saved, port = tmp / "server.rrd", free_port()
-    server = subprocess.Popen(
-        [str(rerun_binary()), "--save", str(saved), "--port", str(port), "--bind", "127.0.0.1"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    try:
-        wait_listening(port)
-        result = session(tmp / "session.mcap", 3.0, Sink(SinkKind.CONNECT, url=grpc_url(port)))
-        wait_settled(saved)
-    finally:
-        server.send_signal(signal.SIGINT)  # it stops saving and exits
-        server.wait(30)
+    saved = tmp / "server.rrd"
+    with rerun_save_server(saved) as url:
+        result = session(tmp / "session.mcap", 3.0, Sink(SinkKind.CONNECT, url=url))
     yield result, saved
 
 
@@ -390,24 +378,6 @@ def session(out: Path, seconds: float, view: Sink | None) -> SessionResult:
             urdf=RobotModel().urdf_xml,
         )
     return record_session(config, stop=threading.Event(), live=live)
-
-
-def wait_listening(port: int) -> None:
-    deadline = time.monotonic() + 30
-    while socket.socket().connect_ex(("127.0.0.1", port)) != 0:
-        assert time.monotonic() < deadline, f"rerun did not listen on {port}"
-        time.sleep(0.05)
-
-
-def wait_settled(path: Path) -> None:
-    """Until ``path`` has not grown for 1 s (the server writes what it got as it gets it)."""
-    size, since = -1, time.monotonic()
-    deadline = since + 30
-    while time.monotonic() - since < 1.0 and time.monotonic() < deadline:
-        time.sleep(0.1)
-        now = path.stat().st_size if path.exists() else -1
-        if now != size:
-            size, since = now, time.monotonic()
 
 
 def assert_recording_complete(result: SessionResult) -> None:
