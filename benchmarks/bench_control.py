@@ -6,12 +6,16 @@ run of each is reported beside it). ``simulate`` returns four (T, A) arrays, 1.0
 hour: 4 x lfilter's output, each run in fresh memory. On this kind of machine (a VM whose host
 takes back memory the guest frees) writing fresh memory sometimes costs seconds rather than a
 tenth of one, so the suite also times writing 1.04 GB of fresh memory against rewriting a
-buffer already in use: the spread of the former is the noise the ratios carry.
+buffer already in use: the spread of the former is the noise the ratios carry. Each law's
+kernel is also timed writing into outputs already in use (``run_into`` on one reused buffer):
+its own speed, without the host's share.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,11 +23,12 @@ from scipy import signal
 
 from benchmarks.harness import Result, quantiles_us
 from hilrig.control import AdmittanceParams, combine, make, preset, simulate
+from hilrig.control.kernel import OUTPUTS
 
 DT_S = 0.001
 STEP_TICKS = 200_000
 TRACE_S = 3600
-REPEATS = 5
+REPEATS = 7
 
 
 def session_trace(duration_s: float, *, seed: int = 0) -> NDArray[np.float64]:
@@ -98,11 +103,22 @@ def bench_simulate() -> list[Result]:
     steps = force.size
     adaptive = nine_axes("adaptive", "adaptive-joint")
     bare = nine_axes("paper-end-effector", "paper-joint")
-    jobs = {
-        "adaptive": lambda: simulate("adaptive", force, DT_S, adaptive),
+    laws = {
+        "adaptive": ("adaptive", adaptive),
+        "fixed": ("fixed", adaptive),
+        "bare": ("adaptive", bare),
+    }
+    out = np.empty((len(OUTPUTS), *force.shape))  # in use: every run rewrites it
+    contact = np.empty(force.shape, dtype=np.int8)
+
+    def in_use(law: str, params: AdmittanceParams) -> Callable[[], None]:
+        controller = make(law, params, dt=DT_S)
+        return lambda: controller.at_rest().run_into(force, out, contact)
+
+    jobs: dict[str, Callable[[], object]] = {
         "lfilter": lambda: lfilter_axes(adaptive, columns),
-        "fixed": lambda: simulate("fixed", force, DT_S, adaptive),
-        "bare": lambda: simulate("adaptive", force, DT_S, bare),
+        **{name: partial(simulate, law, force, DT_S, p) for name, (law, p) in laws.items()},
+        **{f"{name} in use": in_use(law, p) for name, (law, p) in laws.items()},
     }
     runs: dict[str, list[float]] = {name: [] for name in jobs}
     for repeat in range(REPEATS + 1):  # round 0 warms caches, page pools and the kernel cache
@@ -181,6 +197,18 @@ def bench_simulate() -> list[Result]:
             "<= 2",
             bare_ratio <= 2,
             detail,
+        ),
+        *(
+            Result(
+                "control",
+                f"{law}: the kernel into outputs in use, time / lfilter time",
+                median[f"{law} in use"] / median["lfilter"],
+                "x",
+                "",
+                None,
+                detail,
+            )
+            for law in laws
         ),
         *(
             Result(
