@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from hilrig.control import OUTPUTS, AdmittanceController, Law, ParameterError, damping_ratio, make
 from hilrig.errors import ReplayError
-from hilrig.replay.blocks import Blocks
+from hilrig.replay.blocks import Arena, Blocks
 from hilrig.replay.inputs import PathLike, load_trace
 from hilrig.replay.results import FLOAT_ROWS, Run, frame, table_bytes
 from hilrig.replay.specs import ControllerSpec, parse_specs
@@ -100,10 +100,12 @@ def replay(
     *,
     jobs: int | None = None,
     progress: Progress | None = None,
+    arena: Arena | None = None,
 ) -> pd.DataFrame:
     """The result table of ``runs`` over ``trace``. ``jobs``: processes (1 = this one; None =
-    :func:`choose_jobs`). Raises ReplayError for invalid parameters, duplicate run names or
-    a table larger than this machine's memory."""
+    :func:`choose_jobs`); ``arena``: where the table's memory comes from when the runs go in
+    this process (:mod:`.blocks`). Raises ReplayError for invalid parameters, duplicate run
+    names or a table larger than this machine's memory."""
     if not runs:
         raise ReplayError("no controller runs to replay")
     names = [r.name for r in runs]
@@ -118,7 +120,7 @@ def replay(
     workers = min(workers, len(runs))
     report = _Report(progress, ticks * len(runs))
     pool = workers > 1 and "fork" in multiprocessing.get_all_start_methods()
-    blocks = Blocks.allocate(axes, len(FLOAT_ROWS), ticks * len(runs), shared=pool)
+    blocks = Blocks.allocate(axes, len(FLOAT_ROWS), ticks * len(runs), shared=pool, arena=arena)
     found: list[NonFinite | None] = []
     if pool:
         _warm_up(force, controllers[0], blocks)  # compile before forking: once, not per process

@@ -23,6 +23,7 @@ import pandas as pd
 
 from hilrig.errors import ReplayError
 from hilrig.outputs import new_files
+from hilrig.replay.blocks import Arena
 from hilrig.replay.counterfactual import closed_loop
 from hilrig.replay.engine import Progress, check_table_size, replay
 from hilrig.replay.inputs import MCAP_SUFFIXES as INPUT_MCAP_SUFFIXES
@@ -84,10 +85,12 @@ def replay_file(
     resample: bool = False,
     jobs: int | None = None,
     progress: Progress | None = None,
+    arena: Arena | None = None,
 ) -> Replayed:
     """The trace in ``path`` replayed through ``specs``; ``progress(phase, done, total)``
-    follows the phases ``load`` and ``replay``. Raises ReplayError (one line) for an input,
-    parameters or a result size that cannot be replayed, and for a result that is not finite."""
+    follows the phases ``load`` and ``replay``; ``arena`` as :func:`.engine.replay`. Raises
+    ReplayError (one line) for an input, parameters or a result size that cannot be replayed,
+    and for a result that is not finite."""
     if resample and Path(path).suffix.lower() in INPUT_MCAP_SUFFIXES:
         raise ReplayError(
             f"{path}: --resample is for CSV and Parquet tables; a recording is replayed at "
@@ -100,7 +103,8 @@ def replay_file(
     )
     check_table_size(trace, len(specs))
     runs = [Run.from_spec(spec, trace.axis_names) for spec in specs]
-    return Replayed(trace, runs, replay(trace, runs, jobs=jobs, progress=progress))
+    table = replay(trace, runs, jobs=jobs, progress=progress, arena=arena)
+    return Replayed(trace, runs, table)
 
 
 def check_closed_input(path: PathLike) -> Path:

@@ -28,6 +28,7 @@ from hilrig.replay.results import INPUT_KEY
 from hilrig.replay.specs import ControllerSpec
 from hilrig.sweep.dataset import Layout
 from hilrig.sweep.inputs import NS_PER_S, ExcludedEvent, Inputs
+from hilrig.sweep.memory import ARENA, keep_freed_memory
 
 #: Text columns of the metrics rows, stored as strings whatever the rows hold (even none).
 TEXT_COLUMNS = ("source", "run", "law", "group", "axis", "body_region", "verdict", "binding")
@@ -78,6 +79,7 @@ def run_task(task: Task, root: Path, *, tables: bool = False) -> TaskResult:
     """Run ``task`` and write its partitions under ``root``; a HilrigError becomes the result's
     ``error`` (the sweep goes on), anything else propagates (a bug, or an interrupt)."""
     began = time.perf_counter()
+    keep_freed_memory()
     worker = f"{socket.gethostname()}:{os.getpid()}"
     layout = Layout(root)
     if layout.done(task.source, task.run, tables=tables):
@@ -86,7 +88,7 @@ def run_task(task: Task, root: Path, *, tables: bool = False) -> TaskResult:
         if task.closed_loop:
             replayed = closed_replay_file(task.path, [task.spec])
         else:
-            replayed = replay_file(task.path, [task.spec], jobs=1)
+            replayed = replay_file(task.path, [task.spec], jobs=1, arena=ARENA)
         metrics = task_metrics(task, replayed)
         layout.write(task.source, task.run, metrics, replayed.table if tables else None)
     except HilrigError as err:

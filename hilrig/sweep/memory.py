@@ -1,0 +1,51 @@
+"""A sweep worker's memory: what one task frees, the next one reuses.
+
+A task replays a session (ten minutes at 1 kHz through one controller: a result table of about
+260 MB) and analyses the result. Left alone, each task would take all of that as fresh memory:
+the replay maps its table anew, and glibc's ``malloc`` hands large blocks back to the system
+when they are freed. Fresh memory is zeroed by the kernel page by page: measured here, about
+70,000 page faults per task and as much system time as the task's own work, which two workers
+then pay side by side (docs/sweeps.md). So, once per worker process:
+
+- replays take their tables from :data:`ARENA`, one mapping kept for the process
+  (:class:`hilrig.replay.blocks.Arena`);
+- ``malloc`` serves large blocks from its heap and keeps what is freed (``mallopt``: no
+  ``mmap`` for large blocks, no trimming of the heap's top), on glibc; elsewhere nothing changes.
+
+The price: a worker holds as much memory as its largest task needed, until the sweep ends.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import sys
+
+from hilrig.replay.blocks import Arena
+
+#: glibc's mallopt parameters (malloc.h).
+M_TRIM_THRESHOLD, M_TOP_PAD, M_MMAP_MAX = -1, -2, -4
+#: The heap's freed top is kept up to this many bytes (C int: the largest allowed).
+TRIM_THRESHOLD_BYTES = 2**31 - 1
+#: The heap grows by this much more than asked, in one step.
+TOP_PAD_BYTES = 1 << 26
+
+#: This process's replay memory, reused from one task to the next (a task's result table never
+#: outlives the task).
+ARENA = Arena()
+_kept: list[bool] = []
+
+
+def keep_freed_memory() -> None:
+    """Have ``malloc`` keep what this process frees for its next allocations (once per
+    process; on Linux with glibc, nothing elsewhere)."""
+    if _kept or not sys.platform.startswith("linux"):
+        return
+    _kept.append(True)
+    name = ctypes.util.find_library("c")
+    mallopt = getattr(ctypes.CDLL(name), "mallopt", None) if name else None
+    if mallopt is None:  # not glibc
+        return
+    mallopt(M_MMAP_MAX, 0)
+    mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES)
+    mallopt(M_TOP_PAD, TOP_PAD_BYTES)
