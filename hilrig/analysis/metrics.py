@@ -246,10 +246,26 @@ def tracking_metrics(run: Run, events: Sequence[CollisionEvent]) -> tuple[Tracki
         np.add.at(depth, np.searchsorted(run.t_s, [e.start_s for e in spans]), 1)
         np.add.at(depth, np.searchsorted(edges, [e.end_s for e in spans]), -1)
         outside[group] = np.cumsum(depth[:last]) == 0
+    # masked sums of squares as one product per group (a pass, no rows gathered; einsum, not
+    # BLAS, so that no thread pool is woken); a column that is not finite somewhere (0 x inf
+    # is NaN) is summed over its rows alone, as it is
+    squares = run.offset * run.offset
+    groups = {group_of(axis) for axis in run.axes}
+    samples = {group: int(np.count_nonzero(outside[group])) for group in groups}
+    with np.errstate(invalid="ignore"):
+        sums = {
+            g: np.einsum("i,ij->j", outside[g].astype(np.float64), squares)
+            for g in groups
+            if samples[g]
+        }
     found = []
     for col, axis in enumerate(run.axes):
         group = group_of(axis)
-        free = run.offset[outside[group], col]
-        rms = float(np.sqrt(np.mean(free * free))) if free.size else None
-        found.append(TrackingMetrics(run.name, group, axis, rms, int(free.size)))
+        rms = None
+        if group in sums:
+            total = float(sums[group][col])
+            if not math.isfinite(total):
+                total = float(np.sum(squares[outside[group], col]))
+            rms = math.sqrt(total / samples[group])
+        found.append(TrackingMetrics(run.name, group, axis, rms, samples[group]))
     return tuple(found)

@@ -158,6 +158,40 @@ def test_tracking_rms_of_a_sine_outside_the_event_ignores_the_event() -> None:
     assert tracking.tracking_rms == pytest.approx(amplitude / np.sqrt(2), rel=1e-12)
 
 
+@pytest.mark.parametrize("inside", [np.inf, np.nan], ids=["inf", "nan"])
+def test_tracking_rms_ignores_values_that_are_not_finite_inside_the_event(inside: float) -> None:
+    amplitude = 0.004
+    offset = amplitude * np.sin(2 * np.pi * 2.0 * T)
+    pushed = (T >= 1.0 - 1e-9) & (T < 2.0 - 1e-9)
+    offset[pushed] = inside
+    run = _run(np.where(pushed, 5.0, 0.0), offset)
+    (tracking,) = tracking_metrics(run, detect(T, run.force, run.axes))
+    assert tracking.tracking_rms == pytest.approx(amplitude / np.sqrt(2), rel=1e-12)
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    offset=arrays(np.float64, (400, 3), elements=st.floats(-1.0, 1.0)),
+    start=st.integers(0, 390),
+    length=st.integers(10, 200),
+)
+def test_tracking_rms_is_the_rms_over_the_rows_outside_the_events(
+    offset: np.ndarray, start: int, length: int
+) -> None:
+    force = np.zeros((T.shape[0], 3))
+    force[start : start + length, 0] = 5.0
+    run = Run("r", "fixed", ("x", "y", "z"), T, force, offset, np.zeros_like(offset))
+    events = detect(T, force, run.axes)
+    inside = np.zeros(T.shape[0], dtype=bool)
+    for event in events:
+        inside |= (event.start_s - 1e-9 <= T) & (event.end_s - 1e-9 > T)
+    for col, tracking in enumerate(tracking_metrics(run, events)):
+        free = offset[~inside, col]
+        assert tracking.samples == free.size
+        expected = np.sqrt(np.mean(free * free)) if free.size else None
+        assert tracking.tracking_rms == pytest.approx(expected, rel=1e-12, abs=1e-300)
+
+
 def test_an_event_of_another_group_leaves_an_axis_alone() -> None:
     force = np.zeros((T.shape[0], 2))
     force[100:200, 1] = 1.0  # a joint collision
