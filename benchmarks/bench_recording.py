@@ -256,6 +256,8 @@ def bench_crash(tmp: Path) -> list[Result]:
         child = subprocess.Popen(
             [sys.executable, "-c", CHILD, str(path)], stdout=subprocess.PIPE, text=True
         )
+        assert child.stdout is not None
+        child.stdout.readline()  # writing: run_s from here (its imports take seconds when busy)
         time.sleep(run_s)
         os.kill(child.pid, signal.SIGKILL)
         output, _ = child.communicate()
