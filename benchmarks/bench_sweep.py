@@ -2,8 +2,8 @@
 pool on the same sweep, tasks per second.
 
 The sweep: 8 force tables of 10 minutes at 1 kHz (9 axes, a collision every 30 s, as
-:func:`benchmarks.bench_control.session_trace`) x 3 adaptive parameter sets = 24 tasks of about
-a second each (replay, events, metrics, one Parquet partition). Each run writes into a fresh
+:func:`benchmarks.bench_control.session_trace`) x 3 adaptive parameter sets = 24 tasks of 0.2-0.3
+s each here (replay, events, metrics, one Parquet partition). Each run writes into a fresh
 folder (a rerun would skip everything); each engine runs twice, alternating, and its best time
 counts (the machine's other load is in the details). Ray runs on a local instance of 2 CPUs,
 started before the timing (its start-up, several seconds, is reported apart): what is compared
