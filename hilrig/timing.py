@@ -8,11 +8,8 @@ in 1 us bins. :func:`bound_kernel` calls a compiled kernel without numba's per-c
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import gc
 import os
-import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from functools import partial
@@ -21,18 +18,17 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hilrig.libc import linux_libc
+
 PR_SET_TIMERSLACK = 29
 REALTIME_PRIORITY = 50  # SCHED_FIFO, below the kernel's own threads (99) and IRQ threads (50+)
 
 
 def tighten_timer_slack(slack_ns: int = 1000) -> bool:
     """Ask Linux to wake this thread's sleeps within ``slack_ns``; False where unsupported."""
-    if not sys.platform.startswith("linux"):
+    libc = linux_libc()
+    if libc is None:
         return False
-    libc_name = ctypes.util.find_library("c")
-    if libc_name is None:
-        return False
-    libc = ctypes.CDLL(libc_name, use_errno=True)
     return bool(libc.prctl(PR_SET_TIMERSLACK, slack_ns, 0, 0, 0) == 0)
 
 

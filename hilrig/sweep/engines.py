@@ -15,8 +15,6 @@ tasks finish, in any order. Scheduling, retries and placement are the engine's o
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import multiprocessing
 import os
 import signal
@@ -32,6 +30,7 @@ from types import ModuleType
 from typing import Any
 
 from hilrig.errors import SweepError
+from hilrig.libc import linux_libc
 from hilrig.sweep.tasks import Task, TaskResult, run_task
 
 ENGINES = ("local", "ray")
@@ -114,10 +113,9 @@ def _worker_init() -> None:
     """A pool worker: Ctrl-C is the sweep's to handle (its running tasks finish, the rest
     are dropped), and on Linux the worker ends with the sweep's process, however that ends."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if sys.platform.startswith("linux"):
-        libc = ctypes.util.find_library("c")
-        if libc is not None:
-            ctypes.CDLL(libc).prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    libc = linux_libc()
+    if libc is not None:
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
 
 
 def import_ray() -> ModuleType:

@@ -17,10 +17,9 @@ The price: a worker holds as much memory as its largest task needed, until the s
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
-import sys
+import functools
 
+from hilrig.libc import linux_libc
 from hilrig.replay.blocks import Arena
 
 #: glibc's mallopt parameters (malloc.h).
@@ -33,18 +32,14 @@ TOP_PAD_BYTES = 1 << 26
 #: This process's replay memory, reused from one task to the next (a task's result table never
 #: outlives the task).
 ARENA = Arena()
-_kept: list[bool] = []
 
 
+@functools.cache
 def keep_freed_memory() -> None:
     """Have ``malloc`` keep what this process frees for its next allocations (once per
     process; on Linux with glibc, nothing elsewhere)."""
-    if _kept or not sys.platform.startswith("linux"):
-        return
-    _kept.append(True)
-    name = ctypes.util.find_library("c")
-    mallopt = getattr(ctypes.CDLL(name), "mallopt", None) if name else None
-    if mallopt is None:  # not glibc
+    mallopt = getattr(linux_libc(), "mallopt", None)
+    if mallopt is None:  # not Linux, or not glibc
         return
     mallopt(M_MMAP_MAX, 0)
     mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES)
