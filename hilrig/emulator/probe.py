@@ -4,6 +4,12 @@ No hilrig driver in the way: pyserial on the F/T pty, a socket on the joint-stat
 pymodbus ``ModbusTcpClient`` with RTU framing on the joint-target endpoint, decoded with the
 pure codecs (``KunweiFramer``, ``RobotStateDecoder``). Everything is read from the caller's
 thread: ``read()`` takes what has arrived (waiting up to ``timeout_s`` for something).
+
+Two ways to write joint targets: ``write()`` waits for the reply (pymodbus's synchronous
+client), ``send()`` only sends a pymodbus-framed request on a second connection and ``acks()``
+collects the replies later without blocking, as a session's loop does; with ``wait_for_ft()``
+(only the sensor wakes the caller) that is a session's traffic, which is what the rig's CPU
+benchmark needs: a reply that wakes a waiting client costs the rig tens of microseconds more.
 """
 
 from __future__ import annotations
@@ -11,13 +17,17 @@ from __future__ import annotations
 import select
 import socket
 from collections.abc import Sequence
+from contextlib import suppress
 
 import serial
 from pymodbus import FramerType
 from pymodbus.client import ModbusTcpClient
-from pymodbus.pdu import ModbusPDU
+from pymodbus.framer import FramerRTU
+from pymodbus.pdu import DecodePDU, ModbusPDU
+from pymodbus.pdu.register_message import WriteMultipleRegistersRequest
 
 from hilrig.drivers.ft.wire import START_COMMAND, STOP_COMMAND, FtSample, KunweiFramer
+from hilrig.drivers.joint_targets.frame import rtu_frame_size
 from hilrig.drivers.joint_targets.wire import JointTargets, Mode, RegisterMap
 from hilrig.drivers.robot_state.wire import RobotState, RobotStateDecoder
 from hilrig.emulator.rig import RigEndpoints
@@ -37,6 +47,10 @@ class RigProbe:
         self._serial: serial.Serial | None = None
         self._sock: socket.socket | None = None
         self.modbus: ModbusTcpClient | None = None
+        self._pipe: socket.socket | None = None  # send()'s connection, opened by its first call
+        self._pipe_rx = bytearray()
+        self._request_framer = FramerRTU(DecodePDU(is_server=False))
+        self._reply_framer = FramerRTU(DecodePDU(is_server=False))
         self.joint_closed = False  # the rig closed the joint-state stream
         self.ft_closed = False  # the rig closed the pty (stopped, or a dropped link)
 
@@ -79,13 +93,45 @@ class RigProbe:
             self._map.start, registers, device_id=self._map.device_id
         )
 
+    def wait_for_ft(self, timeout_s: float) -> None:
+        """Sleep until the F/T pty has data or ``timeout_s`` passes: as a session's loop waits,
+        woken by the sensor only (then ``read()`` takes everything without waiting)."""
+        assert self._serial is not None
+        select.select([] if self.ft_closed else [self._serial.fileno()], [], [], timeout_s)
+
+    def send(self, q_rad: Sequence[float], sequence: int, mode: Mode = Mode.TRACK) -> None:
+        """Send one joint-target write without waiting for its reply (see ``acks()``)."""
+        if self._pipe is None:
+            self._pipe = socket.create_connection(self._endpoints.modbus, timeout=10)
+            self._pipe.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            self._pipe.setblocking(False)
+        registers = self._map.encode(JointTargets(tuple(q_rad), sequence, mode))
+        request = WriteMultipleRegistersRequest(
+            address=self._map.start, registers=registers, dev_id=self._map.device_id
+        )
+        self._pipe.sendall(self._request_framer.buildFrame(request))
+
+    def acks(self) -> list[ModbusPDU]:
+        """The replies to ``send()`` that have arrived, oldest first (never blocks)."""
+        if self._pipe is None:
+            return []
+        with suppress(BlockingIOError):
+            self._pipe_rx += self._pipe.recv(65536)
+        replies: list[ModbusPDU] = []
+        while size := rtu_frame_size(self._reply_framer.decoder, self._pipe_rx):
+            _, reply = self._reply_framer.handleFrame(bytes(self._pipe_rx[:size]), 0, 0)
+            del self._pipe_rx[:size]
+            if reply is not None:
+                replies.append(reply)
+        return replies
+
     def stop_ft(self) -> None:
         """Send the sensor's stop command."""
         assert self._serial is not None
         self._serial.write(STOP_COMMAND)
 
     def close(self) -> None:
-        for closeable in (self._serial, self._sock, self.modbus):
+        for closeable in (self._serial, self._sock, self.modbus, self._pipe):
             if closeable is not None:
                 closeable.close()
 

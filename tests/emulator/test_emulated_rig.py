@@ -71,6 +71,28 @@ def test_rig_streams_sensor_and_state_and_follows_modbus_targets() -> None:
     assert rig.counters().modbus_writes == 400
 
 
+def test_writes_sent_without_waiting_are_each_applied_and_acknowledged_in_order() -> None:
+    rig = EmulatedRig(Constant([0.0] * 6))
+    target = np.asarray(HOME_Q_RAD) - 0.03
+    acks = []
+    with rig as endpoints, RigProbe(endpoints) as probe:
+        read_at_least(probe, 1, 1)
+        for n in range(1, 301):  # a session's traffic: woken by the sensor, one write a frame
+            probe.wait_for_ft(0.05)
+            _, states = probe.read()
+            acks += probe.acks()
+            probe.send(target, n)
+        deadline = time.monotonic() + 30.0
+        while len(acks) < 300:
+            assert time.monotonic() < deadline, f"{len(acks)} of 300 writes acknowledged"
+            acks += probe.acks()
+            _, states = probe.read(0.01)
+        _, states = read_at_least(probe, 0, 1)
+    assert [a.function_code for a in acks] == [0x10] * 300
+    assert rig.counters().modbus_writes == 300
+    np.testing.assert_allclose(states[-1].q_rad, target, atol=0.01)
+
+
 def test_paper_scenarios_are_the_paper_profiles() -> None:
     pose = np.eye(4)
     for t_s in (3.9, 4.2, 4.5, 5.0, 5.7, 6.1):

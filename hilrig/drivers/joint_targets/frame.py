@@ -68,6 +68,13 @@ class RequestFrame:
         self.fill_from_q(sequence, int(mode))
 
 
+def crc_ok(frame: bytes | bytearray, size: int) -> bool:
+    """Whether the ``size``-byte RTU frame at the start of ``frame`` ends in its CRC-16/MODBUS
+    (low byte first); compiled, a fraction of a microsecond against pymodbus's ~10 us."""
+    crc = int(crc16(frame, size - 2, _CRC_TABLE))
+    return crc == frame[size - 2] | frame[size - 1] << 8
+
+
 def rtu_frame_size(decoder: DecodePDU, buffer: bytes | bytearray) -> int:
     """Bytes of the RTU frame at the start of ``buffer`` by pymodbus's own sizing of its
     function; 0 while incomplete, ``len(buffer)`` for a function pymodbus does not know (nothing
@@ -131,9 +138,18 @@ def fill_request(
     frame[sequence_at + 1] = sequence & 0xFF
     frame[mode_at] = (mode >> 8) & 0xFF
     frame[mode_at + 1] = mode & 0xFF
-    crc = 0xFFFF
     end = frame.shape[0] - 2
-    for i in range(end):
-        crc = ((crc >> 8) & 0xFF) ^ crc_table[(crc ^ frame[i]) & 0xFF]
+    crc = crc16(frame, end, crc_table)
     frame[end] = crc & 0xFF
     frame[end + 1] = (crc >> 8) & 0xFF
+
+
+@njit(cache=True)
+def crc16(
+    data: NDArray[np.uint8] | bytes | bytearray, end: int, crc_table: NDArray[np.uint16]
+) -> int:
+    """The CRC-16/MODBUS of ``data[:end]`` by pymodbus's table (sent low byte first)."""
+    crc = 0xFFFF
+    for i in range(end):
+        crc = ((crc >> 8) & 0xFF) ^ crc_table[(crc ^ data[i]) & 0xFF]
+    return crc

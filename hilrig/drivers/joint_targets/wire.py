@@ -75,10 +75,13 @@ class RegisterMap:
         return registers
 
     def decode(self, registers: list[int]) -> JointTargets:
-        """The inverse of ``encode`` (raises ProtocolError on an unknown mode)."""
+        """The inverse of ``encode`` (raises ProtocolError on an unknown mode or a target that
+        is not finite: no robot takes those)."""
         at = self.targets[0] - self.start
         raw = struct.pack(f">{2 * JOINTS}H", *registers[at : at + 2 * JOINTS])
         q = struct.unpack(f">{JOINTS}f", raw)
+        if not all(math.isfinite(value) for value in q):
+            raise ProtocolError(f"joint targets: not finite {q}")
         code = registers[self.mode[0] - self.start]
         try:
             mode = Mode(code)
