@@ -33,7 +33,7 @@ import tty
 
 import numpy as np
 
-from benchmarks.harness import Result, quantiles_us
+from benchmarks.harness import Result, Steal, quantiles_us
 from hilrig.timing import realtime_python
 
 PERIOD_NS = 1_000_000
@@ -45,6 +45,7 @@ WRITER_PRIORITY = 40  # the emulated rig's thread (hilrig/emulator/slots.py)
 
 
 def run() -> list[Result]:
+    steal = Steal()
     idle = _wake_ups()
     busy_core = subprocess.Popen([sys.executable, "-c", "while True: pass"])
     try:
@@ -55,7 +56,14 @@ def run() -> list[Result]:
     gaps = _spin_gaps()
     links = _delivery_rows("pty", _delivery(*os.openpty(), raw=True))
     links += _delivery_rows("socket pair", _delivery(*(s.detach() for s in socket.socketpair())))
-    return _wake_rows(idle, "") + _wake_rows(busy, " (a busy process on one core)") + gaps + links
+    stolen = Result("machine", "hypervisor steal over the suite", steal.percent(), "% of CPU time")
+    return (
+        _wake_rows(idle, "")
+        + _wake_rows(busy, " (a busy process on one core)")
+        + gaps
+        + links
+        + [stolen]
+    )
 
 
 def _delivery(write_fd: int, read_fd: int, *, raw: bool = False) -> np.ndarray:
