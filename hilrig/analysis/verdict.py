@@ -103,10 +103,13 @@ def judge(
     for number, event in enumerate(events):
         if event.group is not AxisGroup.CARTESIAN:
             continue
-        window = (run.t_s >= event.start_s) & (run.t_s <= event.end_s)
-        if not window.any():
+        # the rows in [start_s, end_s]: t_s increases (a Run's invariant), so two binary
+        # searches instead of masks over the whole run (20 events x 10 min cost 36 ms)
+        first = int(np.searchsorted(run.t_s, event.start_s, side="left"))
+        end = int(np.searchsorted(run.t_s, event.end_s, side="right"))
+        if end <= first:
             continue
-        t, force = run.t_s[window], run.force[window][:, cartesian]
+        t, force = run.t_s[first:end], run.force[first:end][:, cartesian]
         verdicts.append(_verdict(run, number, t, force, region, area_cm2, transient_s, model))
     return verdicts
 
