@@ -14,8 +14,8 @@ A request that is exactly a write of the whole register map (device id, function
 count and byte count as the map's, valid CRC) takes a compiled fast path: its registers are
 unpacked directly and the acknowledgement is pymodbus's, built once. pymodbus's decoding of a
 request costs about 20 us of Python here, a tenth of the rig's slot, at 1 kHz. Everything
-else goes through pymodbus; ``pymodbus_only=True`` sends every request that way (the reference
-``tests/emulator/test_emulated_modbus_fast_path.py`` compares the two against).
+else goes through pymodbus; ``pymodbus_only=True`` sends every request that way, the reference
+against which ``tests/emulator/test_emulated_modbus_fast_path.py`` checks the fast path.
 """
 
 from __future__ import annotations
