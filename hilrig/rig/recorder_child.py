@@ -30,6 +30,7 @@ from hilrig.rig.recorder_feed import release_rings
 from hilrig.rig.rings import Ring, RingSpec
 from hilrig.rig.row_messages import EVENTS_TOPIC, ft_samples, joint_samples, tick_samples
 from hilrig.rig.view_feed import VIEW_BATCH_S, VIEW_HANDOFF_S, ViewBatch, ViewForwarder
+from hilrig.timing import freeze_heap
 
 IDLE_FLUSH_S = 0.25  # hand a quiet writer's open chunk to the OS after this long without data
 STOP = None  # the last item RecorderProcess.stop() puts on the event queue (after the outcome)
@@ -83,6 +84,7 @@ def record(conn: Connection, job: RecorderJob) -> None:
         return
     recorder = _Recorder(job, writer, rings)
     signal.signal(signal.SIGTERM, recorder.on_sigterm)
+    freeze_heap()  # the collector's passes then walk only what the session makes
     report(conn, "ready")
     try:
         messages = recorder.run()

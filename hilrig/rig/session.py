@@ -20,7 +20,6 @@ unwinds in reverse order.
 from __future__ import annotations
 
 import contextlib
-import gc
 import threading
 import time
 from collections.abc import Callable
@@ -55,6 +54,7 @@ from hilrig.rig.warm_up import warm_up
 from hilrig.robot import RobotModel
 from hilrig.tick.safety import SafetyClamp, SafetyConfig
 from hilrig.tick.trajectory import make_trajectory
+from hilrig.timing import freeze_heap
 from hilrig.world.scenarios import settings_of
 
 __all__ = ["STARTUP_RING_ROWS", "SessionConfig", "SessionResult", "record_session"]
@@ -116,8 +116,7 @@ def record_session(
     session_id = config.session_id_or_now()
     model = RobotModel()
     warm_up()  # numba's first-call costs, before any device talks
-    gc.collect()  # and the collector's big pass: the loop's own (realtime_python) is then short
-    gc.freeze()
+    freeze_heap()  # and the collector's big pass: the loop's own (realtime_python) is then short
     with ExitStack() as stack:
         made = _make_folders(config.out)
         stack.callback(_remove_empty, made)  # at the end, unless the file is there
