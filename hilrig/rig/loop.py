@@ -19,6 +19,12 @@ it is re-anchored to any frame that arrives early, and every ``GRID_WINDOW`` tic
 by the smallest lateness of the window (a sensor whose clock runs slow). A tick's lateness is
 its start minus its nominal time; a missed deadline is a tick whose work ended more than one
 period after its nominal time.
+
+A frame ``NUDGE_NS`` overdue is asked for: the loop wakes and reads every link, readable or not.
+A serial port's bytes reach the reader through the kernel's tty buffer, which a kernel worker of
+normal priority hands on; a read of the port makes the kernel hand on what it holds first. That
+worker can wait a whole period behind another thread of normal priority (traced here: the
+kernel's DAMON thread), and the frame would then come with the next one (docs/rig.md).
 """
 
 from __future__ import annotations
@@ -67,6 +73,8 @@ from hilrig.timing import realtime_python
 COMMAND_FAULT_HOLD_NS = 50_000_000  # after a failed joint-target write, hold this long
 WATCHDOG_TICKS = 100  # how often the session's watchdog (e.g. a living recorder) is asked
 GRID_WINDOW = 1000  # ticks over which the nominal grid follows a slow sensor clock
+# A frame this late past its period is asked for: a read hands over what the tty's worker holds
+NUDGE_NS = 200_000
 STATUS_EVERY = 10  # ticks between updates of the status line's values
 
 
@@ -197,7 +205,10 @@ class ControlLoop:
             nominal = now
             window_min = None
             while not stop.is_set():
-                now = self._io.wait(nominal + 2 * period)
+                wake_ns = nominal + period + NUDGE_NS  # then read even if nothing is readable
+                if time.monotonic_ns() >= wake_ns:
+                    wake_ns = nominal + 2 * period  # the fallback tick's deadline
+                now = self._io.wait(wake_ns)
                 frames = self._io.pump(now)
                 if frames:  # each frame is one period of the sensor's clock
                     expected = nominal + period * len(frames)
