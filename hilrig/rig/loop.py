@@ -197,6 +197,8 @@ class ControlLoop:
         summary = self.summary
         self._events.mark("loop", "session started at the start pose", time.monotonic_ns())
         with realtime_python():  # first: its one garbage collection must not delay tick 1
+            # what came while the loop started is recorded, not ticked: tick 1 is the next frame
+            self._io.pump(time.monotonic_ns())
             now = time.monotonic_ns()
             self._t0_ns = now
             end_ns = None if duration_s is None else now + round(duration_s * 1e9)
