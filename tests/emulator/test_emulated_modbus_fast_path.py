@@ -8,6 +8,8 @@ requests split across segments. Replies, counters and the targets applied must b
 
 import socket
 import struct
+import subprocess
+import sys
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
@@ -165,3 +167,22 @@ def test_non_finite_targets_are_refused_with_illegal_value(peers: tuple[Peer, Pe
         applied, rejected = len(peer.applied), peer.server.rejected
         assert exchange(peer, [bytes(nan_write)]) == refused
         assert len(peer.applied) == applied and peer.server.rejected == rejected + 1
+
+
+WARM_CHILD = """
+from hilrig.drivers.joint_targets.frame import crc16
+before = len(crc16.signatures)
+from hilrig.emulator.modbus_server import EmulatedModbusServer
+server = EmulatedModbusServer(lambda targets: None)
+print(before, len(crc16.signatures))
+server.close()
+"""
+
+
+def test_the_crc_kernel_is_ready_before_the_first_request() -> None:
+    """In a process of its own: the endpoint loads its compiled CRC when it is made, so the
+    session's first write does not stop the rig's slots while numba loads (or compiles) it."""
+    out = subprocess.run(
+        [sys.executable, "-c", WARM_CHILD], capture_output=True, text=True, check=True
+    ).stdout.split()
+    assert out == ["0", "1"]
