@@ -59,8 +59,7 @@ def realtime_python() -> Iterator[None]:
     was measured too (0.2 ms against the default 5 ms) and brought no gain.
     """
     enabled = gc.isenabled()
-    gc.collect()
-    gc.freeze()
+    freeze_heap()
     gc.disable()
     tighten_timer_slack()
     policy = _raise_priority()
