@@ -83,8 +83,9 @@ class EmulatedModbusServer(Device):
         self._ack = FramerRTU(DecodePDU(is_server=True)).buildFrame(
             WriteMultipleRegistersResponse(address=start, count=count, dev_id=dev_id)
         )
-        # load (or compile) the CRC kernel now, not in a slot on the session's first request
-        crc_ok(self._ack, len(self._ack))
+        # load (or compile) the CRC kernel now, not in a slot on the session's first request:
+        # for a bytearray, as requests arrive (numba compiles bytes and bytearray apart)
+        crc_ok(bytearray(self._ack), len(self._ack))
         self._on_targets = on_targets
         self._listener = socket.create_server((host, port))
         self._listener.setblocking(False)
