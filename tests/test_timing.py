@@ -77,7 +77,8 @@ FREEZE_CHILD = textwrap.dedent(
     gone = weakref.ref(lost)
     del lost
     tracked = len(gc.get_objects())
-    frozen = freeze_heap()
+    freeze_heap()
+    frozen = gc.get_freeze_count()
     print(tracked, frozen, len(gc.get_objects()), gone() is None)
     """
 )
