@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
 import platform
+import signal
 import sys
 import time
 from datetime import UTC, datetime
@@ -23,6 +25,10 @@ HERE = Path(__file__).parent
 
 
 def main(argv: list[str]) -> int:
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        # started in the background by a script: SIGINT is ignored and every child would
+        # inherit that, so the Rerun server the session suite stops with Ctrl-C would not stop
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     names = argv or sorted(p.stem.removeprefix("bench_") for p in HERE.glob("bench_*.py"))
     console = Console()
     results: list[Result] = []
@@ -41,7 +47,11 @@ def main(argv: list[str]) -> int:
     console.print(table)
     report = {
         "when_utc": datetime.now(UTC).isoformat(timespec="seconds"),
-        "machine": {"python": platform.python_version(), "cpu": platform.processor(), "cores": 2},
+        "machine": {
+            "python": platform.python_version(),
+            "cpu": platform.processor(),
+            "cores": os.cpu_count(),
+        },
         "suites": names,
         "results": [r.as_dict() for r in results],
     }

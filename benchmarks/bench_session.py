@@ -138,7 +138,11 @@ def _rerun_server(saved: Path) -> Iterator[str]:
         yield grpc_url(port)
     finally:
         server.send_signal(signal.SIGINT)  # it stops saving and exits
-        server.wait(30)
+        try:
+            server.wait(30)
+        except subprocess.TimeoutExpired:  # what it received is saved by then
+            server.kill()
+            server.wait()
 
 
 def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[Result]:
