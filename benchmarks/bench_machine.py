@@ -6,6 +6,9 @@ the thread it runs on, nor than the link its samples come through):
 - **wake-up lateness**: a bare thread (no GC, 1 us timer slack, as the loop runs) sleeps to
   absolute deadlines 1 ms apart, idle and with a busy process burning one core; the share of
   wake-ups more than a period late bounds the session's missed deadlines from below;
+- **fixed work after a wake-up**: right after each of those wake-ups the thread does the same
+  small numpy work (16 products of a 6x6 matrix and a vector, about as long as a tick); its
+  p99 against its p50 is the spread the machine alone puts on a tick's compute time;
 - **CPU taken away**: a thread that never sleeps (normal priority: a SCHED_FIFO spinner would
   only measure Linux's real-time throttling, 50 ms a second) reads the clock in a tight loop;
   every gap over 100 us is time the OS or the hypervisor gave to someone else (steal on a VM);
@@ -117,11 +120,13 @@ def _delivery_rows(link: str, delay_ns: np.ndarray) -> list[Result]:
     ]
 
 
-def _wake_ups() -> tuple[np.ndarray, bool]:
-    """Lateness (ns) of each wake-up of a thread sleeping to deadlines one period apart, and
-    whether the thread ran SCHED_FIFO."""
+def _wake_ups() -> tuple[np.ndarray, np.ndarray, bool]:
+    """Lateness (ns) of each wake-up of a thread sleeping to deadlines one period apart, the
+    time (ns) of the fixed work it does after each, and whether the thread ran SCHED_FIFO."""
     count = round(WAKE_S * 1e9 / PERIOD_NS)
     late = np.zeros(count, dtype=np.int64)
+    work = np.zeros(count, dtype=np.int64)
+    matrix, vector = np.eye(6) * 0.999, np.ones(6)
     with realtime_python():
         fifo = os.sched_getscheduler(0) == os.SCHED_FIFO
         deadline = time.monotonic_ns() + PERIOD_NS
@@ -129,14 +134,20 @@ def _wake_ups() -> tuple[np.ndarray, bool]:
             remaining = deadline - time.monotonic_ns()
             if remaining > 0:
                 time.sleep(remaining / 1e9)
-            late[i] = time.monotonic_ns() - deadline
+            woke = time.monotonic_ns()
+            late[i] = woke - deadline
+            product = vector
+            for _ in range(16):
+                product = matrix @ product
+            work[i] = time.monotonic_ns() - woke
             deadline += PERIOD_NS
-    return late, fifo
+    return late, work, fifo
 
 
-def _wake_rows(measured: tuple[np.ndarray, bool], variant: str) -> list[Result]:
-    late_ns, fifo = measured
+def _wake_rows(measured: tuple[np.ndarray, np.ndarray, bool], variant: str) -> list[Result]:
+    late_ns, work_ns, fifo = measured
     q = quantiles_us(late_ns)
+    w = quantiles_us(work_ns)
     over_pct = 100 * float(np.count_nonzero(late_ns > PERIOD_NS)) / len(late_ns)
     detail = {
         "wake_ups": len(late_ns),
@@ -149,6 +160,8 @@ def _wake_rows(measured: tuple[np.ndarray, bool], variant: str) -> list[Result]:
         Result("machine", f"{name} lateness p99{variant}", q["p99"], "us", detail=detail),
         Result("machine", f"{name} lateness max{variant}", q["max"], "us", detail=detail),
         Result("machine", f"{name}s over a period late{variant}", over_pct, "%", detail=detail),
+        Result("machine", f"fixed work after a wake-up p50{variant}", w["p50"], "us", detail=w),
+        Result("machine", f"fixed work after a wake-up p99{variant}", w["p99"], "us", detail=w),
     ]
 
 
