@@ -68,7 +68,8 @@ class Reference:
         if fresh:
             r_base_sensor = MODEL.fk(q)[:3, :3]
             wrench = self.compensator.compensate(raw, r_base_sensor)
-            fresh9 = np.concatenate([r_base_sensor @ wrench[:3], tau]) + extra
+            with np.errstate(invalid="ignore", over="ignore"):  # non-finite inputs: not fresh
+                fresh9 = np.concatenate([r_base_sensor @ wrench[:3], tau]) + extra
             fresh = bool(np.isfinite(fresh9).all() and np.isfinite(wrench).all())
         if fresh:
             result |= FRESH
