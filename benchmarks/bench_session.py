@@ -21,8 +21,6 @@ can win back).
 from __future__ import annotations
 
 import os
-import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -37,7 +35,8 @@ from benchmarks.harness import Result, Steal
 from hilrig.rig import ControlLoop, RigProcess, SessionConfig, SessionResult, record_session
 from hilrig.robot import aubo_i5_urdf
 from hilrig.viz.live import LiveView
-from hilrig.viz.sinks import Sink, SinkKind, grpc_url, rerun_binary
+from hilrig.viz.save_server import rerun_save_server
+from hilrig.viz.sinks import Sink, SinkKind
 
 DURATION_S = 60.0
 CLOCK_TICKS_S = os.sysconf("SC_CLK_TCK")
@@ -46,7 +45,7 @@ CLOCK_TICKS_S = os.sysconf("SC_CLK_TCK")
 def run() -> list[Result]:
     tmp = Path(tempfile.mkdtemp(prefix="hilrig-bench-"))
     plain = _session(tmp / "session.mcap")
-    with _rerun_server(tmp / "live.rrd") as url:
+    with rerun_save_server(tmp / "live.rrd") as url:
         live = LiveView(
             Sink(SinkKind.CONNECT, url=url),
             session_id="bench",
@@ -115,34 +114,6 @@ def _busy_core() -> Iterator[None]:
     finally:
         busy.kill()
         busy.wait()
-
-
-@contextmanager
-def _rerun_server(saved: Path) -> Iterator[str]:
-    """Rerun's gRPC server saving what it receives to ``saved``, on a free loopback port; its
-    URL."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    server = subprocess.Popen(
-        [str(rerun_binary()), "--save", str(saved), "--port", str(port), "--bind", "127.0.0.1"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    try:
-        deadline = time.monotonic() + 30
-        while socket.socket().connect_ex(("127.0.0.1", port)) != 0:
-            if time.monotonic() > deadline or server.poll() is not None:
-                raise RuntimeError(f"rerun --save did not listen on port {port}")
-            time.sleep(0.05)
-        yield grpc_url(port)
-    finally:
-        server.send_signal(signal.SIGINT)  # it stops saving and exits
-        try:
-            server.wait(30)
-        except subprocess.TimeoutExpired:  # what it received is saved by then
-            server.kill()
-            server.wait()
 
 
 def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[Result]:

@@ -196,7 +196,7 @@ def _not_rerun(head: bytes) -> str:
 def check_display(port: int = GRPC_PORT) -> None:
     """Raises ViewError at once when the desktop viewer could not open a window: on Linux,
     neither DISPLAY nor WAYLAND_DISPLAY is set (and no viewer already listens on ``port``)."""
-    if not sys.platform.startswith("linux") or _listening(port):
+    if not sys.platform.startswith("linux") or listening(port):
         return
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise ViewError(NO_DISPLAY)
@@ -232,7 +232,7 @@ class WebServer:
                 _, err = self.process.communicate()
                 last = (err or "").strip().splitlines()[-1:] or ["no output"]
                 raise ViewError(f"the Rerun web server exited: {last[0]}")
-            if _listening(self.port) and _listening(self.web_port):
+            if listening(self.port) and listening(self.web_port):
                 return
             time.sleep(0.05)
         self.close()
@@ -264,7 +264,7 @@ def spawn_viewer(port: int, timeout_s: float = 20.0) -> None:
     does not listen within ``timeout_s`` (no display: use a file, the web viewer or a URL). A
     viewer without a display listens for a moment before it dies: a new one must still run
     ``VIEWER_SETTLE_S`` after it listens."""
-    if _listening(port):
+    if listening(port):
         return
     check_display(port)
     command = [str(rerun_binary()), "--port", str(port), "--expect-data-soon"]
@@ -285,7 +285,7 @@ def spawn_viewer(port: int, timeout_s: float = 20.0) -> None:
                     f"the Rerun viewer did not start ({words[-1] if words else 'no output'});"
                     " without a display, save to a file or use the web viewer or a viewer's URL"
                 )
-            if settled is None and _listening(port):
+            if settled is None and listening(port):
                 settled = time.monotonic() + VIEWER_SETTLE_S
             time.sleep(0.05)
 
@@ -300,7 +300,8 @@ def rerun_binary() -> Path:
     return path
 
 
-def _listening(port: int) -> bool:
+def listening(port: int) -> bool:
+    """Whether something accepts TCP connections on 127.0.0.1:``port``."""
     with contextlib.closing(socket.socket()) as s:
         s.settimeout(0.2)
         return s.connect_ex((LOCALHOST, port)) == 0

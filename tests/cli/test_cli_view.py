@@ -17,8 +17,9 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "viz"))
 from rrd_helpers import Rrd
-from servers import impostor, rerun_save_server
+from servers import impostor
 
+from hilrig.viz.save_server import rerun_save_server
 from hilrig.viz.sinks import rerun_binary
 
 HILRIG = Path(sys.executable).with_name("hilrig")

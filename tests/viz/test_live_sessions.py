@@ -13,13 +13,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from live_helpers import LIVE_ENTITIES, read
-from servers import impostor, rerun_save_server
+from servers import impostor
 
 from hilrig.recording import inspect, load
 from hilrig.rig import SessionConfig, SessionResult, record_session
 from hilrig.robot.model import RobotModel
 from hilrig.viz import paths
 from hilrig.viz.live import LiveView
+from hilrig.viz.save_server import rerun_save_server
 from hilrig.viz.sinks import Sink, SinkKind, grpc_url
 
 
