@@ -1,11 +1,14 @@
-"""The real-time loop's thread settings, and latency histograms that never allocate.
+"""The real-time loop's thread settings, latency histograms that never allocate, and compiled
+kernels called without dispatch.
 
 :func:`realtime_python` runs a block without cyclic garbage collection, with 1 us timer slack
 (Linux prctl: sleeps and ``select`` wake within a few microseconds of their target instead of the
 default 50 us), under SCHED_FIFO where permitted, and with the CPUs kept out of slow idle states
-(:func:`cpu_wakeup_latency`) where permitted. :class:`LatencyHistogram` counts durations
-in 1 us bins. :func:`bound_kernel` calls a compiled kernel without numba's per-call dispatch.
-:func:`freeze_heap` keeps the collector's full passes short in the rig's other processes.
+(:func:`cpu_wakeup_latency`) where permitted. :class:`LatencyHistogram` counts durations in
+1 us bins; its add is one compiled call (a Python-level add, with its numpy item update, took
+4-5 us on a slow machine, and the loop adds six a tick). :func:`bound_kernel` calls a compiled
+kernel without numba's per-call dispatch. :func:`freeze_heap` keeps the collector's full passes
+short in the rig's other processes.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from functools import partial
 from typing import Any
 
 import numpy as np
+from numba import njit, typeof
 from numpy.typing import NDArray
 
 from hilrig.libc import linux_libc
@@ -116,37 +120,82 @@ def _raise_priority() -> tuple[int, os.sched_param] | None:
     return previous
 
 
+def bound_kernel(kernel: Any, *arrays: Any, last: tuple[Any, ...]) -> Callable[..., Any]:
+    """``kernel`` (a numba ``@njit`` function) with its leading ``arrays`` bound, calling the
+    machine code compiled for exactly their types and those of the example trailing arguments
+    ``last`` (compiled or loaded from the cache now).
+
+    numba's dispatcher types every argument on every call (about 0.3 us each here, more for
+    record arrays); the bound call skips that. It also skips the checks: the caller must pass
+    trailing arguments of the types of ``last`` (Python ints and floats), and the bound arrays
+    must stay the ones bound (keep references; never rebind them).
+    """
+    signature = tuple(typeof(value) for value in (*arrays, *last))  # type: ignore[no-untyped-call]
+    entry: Callable[..., Any] = kernel.compile(signature)
+    return partial(entry, *arrays)
+
+
+COUNT, TOTAL_NS, MAX_NS = range(3)  # entries of a histogram's totals
+
+
+@njit(cache=True)
+def add_duration(counts: NDArray[np.int64], totals: NDArray[np.int64], duration_ns: int) -> None:
+    """Count ``duration_ns`` in its 1 us bin (negative in bin 0, beyond the last in the last)."""
+    last = counts.shape[0] - 1
+    bin_us = duration_ns // 1000
+    counts[min(max(bin_us, 0), last)] += 1
+    totals[COUNT] += 1
+    totals[TOTAL_NS] += duration_ns
+    if duration_ns > totals[MAX_NS]:
+        totals[MAX_NS] = duration_ns
+
+
 class LatencyHistogram:
     """Counts of durations in 1 us bins up to ``max_us`` (longer ones in the last bin, exact max).
 
-    ``add`` is O(1) and allocates nothing; quantiles are exact to the microsecond.
+    ``add(duration_ns)`` (an int) is O(1), compiled, and allocates nothing; quantiles are exact
+    to the microsecond.
     """
 
     def __init__(self, max_us: int = 20_000) -> None:
         self._counts = np.zeros(max_us + 1, dtype=np.int64)
-        self._max_us = max_us
-        self.count = 0
-        self.max_ns = 0
-        self.total_ns = 0
+        self._totals = np.zeros(3, dtype=np.int64)
+        self.add: Callable[[int], None] = bound_kernel(
+            add_duration, self._counts, self._totals, last=(0,)
+        )
 
-    def add(self, duration_ns: int) -> None:
-        bin_us = duration_ns // 1000
-        self._counts[min(max(bin_us, 0), self._max_us)] += 1
-        self.count += 1
-        self.total_ns += duration_ns
-        if duration_ns > self.max_ns:
-            self.max_ns = duration_ns
+    def __getstate__(self) -> dict[str, Any]:
+        return {"counts": self._counts, "totals": self._totals}  # the bound call is not data
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self._counts, self._totals = state["counts"], state["totals"]
+        self.add = bound_kernel(add_duration, self._counts, self._totals, last=(0,))
+
+    @property
+    def count(self) -> int:
+        return int(self._totals[COUNT])
+
+    @property
+    def total_ns(self) -> int:
+        return int(self._totals[TOTAL_NS])
+
+    @property
+    def max_ns(self) -> int:
+        """The longest duration added (0 before any positive one)."""
+        return int(self._totals[MAX_NS])
 
     def quantile_us(self, q: float) -> float:
         """The q-quantile (0..1) in us, to the bin (NaN when empty)."""
-        if self.count == 0:
+        count = self.count
+        if count == 0:
             return float("nan")
         cumulative = np.cumsum(self._counts)
-        return float(np.searchsorted(cumulative, q * self.count, side="left"))
+        return float(np.searchsorted(cumulative, q * count, side="left"))
 
     def summary_us(self) -> dict[str, float]:
         """Mean, p50, p99, p99.9 and max, us."""
-        mean = self.total_ns / self.count / 1000 if self.count else float("nan")
+        count = self.count
+        mean = self.total_ns / count / 1000 if count else float("nan")
         return {
             "mean": mean,
             "p50": self.quantile_us(0.5),
@@ -158,20 +207,3 @@ class LatencyHistogram:
     def counts(self) -> NDArray[np.int64]:
         """The bin counts (a copy), bin i = [i, i+1) us."""
         return self._counts.copy()
-
-
-def bound_kernel(kernel: Any, *arrays: Any, last: tuple[Any, ...]) -> Callable[..., Any]:
-    """``kernel`` (a numba ``@njit`` function) with its leading ``arrays`` bound, calling the
-    machine code compiled for exactly their types and those of the example trailing arguments
-    ``last`` (compiled or loaded from the cache now).
-
-    numba's dispatcher types every argument on every call (about 0.3 us each here, more for
-    record arrays); the bound call skips that. It also skips the checks: the caller must pass
-    trailing arguments of the types of ``last`` (Python ints and floats), and the bound arrays
-    must stay the ones bound (keep references; never rebind them).
-    """
-    from numba import typeof
-
-    signature = tuple(typeof(value) for value in (*arrays, *last))  # type: ignore[no-untyped-call]
-    entry: Callable[..., Any] = kernel.compile(signature)
-    return partial(entry, *arrays)

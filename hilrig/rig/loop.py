@@ -157,8 +157,7 @@ class ControlLoop:
         inputs.rotation_d[:] = trajectory.rotation  # the task keeps the start orientation
         inputs.orientation_d[:] = trajectory.orientation
         self._q_cmd = self._kernel.q_cmd
-        self._timing = np.zeros(7, dtype=np.int64)
-        self._write_row: Callable[[int], None] | None = None  # bound to the ring while running
+        self._write_row: Callable[..., None] | None = None  # bound to the ring while running
         self._send_ns = 0
         self._command_errors = targets.errors
         self._command_hold_until_ns = 0
@@ -183,7 +182,7 @@ class ControlLoop:
         WATCHDOG_TICKS ticks) names a reason to end; returns the summary. The robot is left
         holding."""
         if self._feed is not None:  # bound to the ring's rows while running, released after
-            self._write_row = self._kernel.row_writer(self._feed.tick.rows, self._timing)
+            self._write_row = self._kernel.row_writer(self._feed.tick.rows)
         try:
             self._ticks(duration_s, stop)
         finally:
@@ -337,15 +336,17 @@ class ControlLoop:
             ring = feed.tick
             slot = ring.reserve_index()
             if slot >= 0:
-                timing = self._timing
-                timing[0] = start_ns
-                timing[1] = summary.ticks
-                timing[2] = start_ns - self._last_start_ns if self._last_start_ns else 0
-                timing[3] = time.monotonic_ns() - start_ns
-                timing[4] = start_ns - nominal_ns
-                timing[5] = summary.missed_deadlines
-                timing[6] = feed.drops
-                self._write_row(slot)
+                last = self._last_start_ns
+                self._write_row(
+                    slot,
+                    start_ns,
+                    summary.ticks,
+                    start_ns - last if last else 0,
+                    time.monotonic_ns() - start_ns,
+                    start_ns - nominal_ns,
+                    summary.missed_deadlines,
+                    feed.drops,
+                )
                 ring.commit()
         self._last_start_ns = start_ns
         self._last_nominal_ns = nominal_ns

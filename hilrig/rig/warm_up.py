@@ -36,8 +36,8 @@ def warm_up() -> None:
     RequestFrame(RegisterMap()).fill(q0, 0, Mode.HOLD)  # the Modbus request's kernels
     ring = Ring.create(RingSpec.unique("warm", TICK_DTYPE, 2))
     try:
-        write_row = tick.row_writer(ring.rows, np.zeros(7, dtype=np.int64))
-        write_row(0)
+        write_row = tick.row_writer(ring.rows)
+        write_row(0, 0, 0, 0, 0, 0, 0, 0)
         del write_row  # it holds the ring's rows, which must be released before unmapping
     finally:
         ring.unlink()

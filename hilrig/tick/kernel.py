@@ -348,11 +348,9 @@ class CompiledTick:
         i.rotation_d[:] = rotation_d
         return self.step(flags_in)
 
-    def row_writer(
-        self, rows: NDArray[np.void], timing: NDArray[np.int64]
-    ) -> Callable[[int], None]:
-        """Writes this tick's row into ``rows[slot]`` when called with ``slot`` (bound
-        :func:`fill_tick_row`); ``timing`` (7,) int64 as that function takes it."""
+    def row_writer(self, rows: NDArray[np.void]) -> Callable[..., None]:
+        """Writes this tick's row into ``rows[slot]`` when called with ``slot`` and the row's
+        seven timing ints (bound :func:`fill_tick_row`)."""
         k, i = self.arrays, self.inputs
         return bound_kernel(
             fill_tick_row,
@@ -363,8 +361,7 @@ class CompiledTick:
             k.mass,
             i.position_d,
             i.orientation_d,
-            timing,
-            last=(0,),
+            last=(0,) * 8,
         )
 
 

@@ -30,22 +30,28 @@ def fill_tick_row(
     mass: NDArray[np.float64],
     position_d: NDArray[np.float64],
     orientation_d: NDArray[np.float64],
-    timing: NDArray[np.int64],
     slot: int,
+    t_ns: int,
+    tick: int,
+    period_ns: int,
+    compute_ns: int,
+    lateness_ns: int,
+    overruns: int,
+    queue_drops: int,
 ) -> None:
     """Write the tick's row (TICK_DTYPE) into ``rows[slot]``.
 
     ``results`` is the controller's ``out`` (offset, rate, damping, stiffness rows of one tick);
-    ``timing`` (7,): t_ns, tick, period_ns, compute_ns, lateness_ns, overruns, queue_drops.
+    the timing fields come as plain ints (a numpy store from Python costs microseconds).
     """
     row = rows[slot]
-    row.t_ns = timing[0]
-    row.tick = timing[1]
-    row.period_ns = timing[2]
-    row.compute_ns = timing[3]
-    row.lateness_ns = timing[4]
-    row.overruns = timing[5]
-    row.queue_drops = timing[6]
+    row.t_ns = t_ns
+    row.tick = tick
+    row.period_ns = period_ns
+    row.compute_ns = compute_ns
+    row.lateness_ns = lateness_ns
+    row.overruns = overruns
+    row.queue_drops = queue_drops
     for i in range(AXES):
         f = work[W_FORCE + i]
         b = results[2, 0, i]
