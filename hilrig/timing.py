@@ -13,12 +13,16 @@ short in the rig's other processes.
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import os
 import struct
+import subprocess
+import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from functools import partial
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -29,6 +33,16 @@ from hilrig.libc import linux_libc
 
 PR_SET_TIMERSLACK = 29
 CPU_LATENCY_DEVICE = "/dev/cpu_dma_latency"  # Linux PM QoS: the CPUs' largest wake-up latency
+CPUIDLE_DRIVER = "/sys/devices/system/cpu/cpuidle/current_driver"
+# An idle spinner: pinned, SCHED_IDLE, killed with its parent (prctl PR_SET_PDEATHSIG, SIGKILL)
+SPINNER = (
+    "import ctypes, os\n"
+    "ctypes.CDLL(None).prctl(1, 9)\n"
+    "if os.getppid() != {parent}: raise SystemExit\n"
+    "os.sched_setaffinity(0, {{{cpu}}})\n"
+    "os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))\n"
+    "while True: pass\n"
+)
 REALTIME_PRIORITY = 50  # SCHED_FIFO, below the kernel's own threads (99) and IRQ threads (50+)
 
 
@@ -60,20 +74,23 @@ def realtime_python() -> Iterator[None]:
     and the tick allocates nothing that needs it), so no collector pause of several ms lands on
     a tick; 1 us timer slack for this thread's sleeps (Linux); and SCHED_FIFO for this thread
     where permitted; and every CPU kept out of idle states slower to leave than 0 us while the
-    body runs (:func:`cpu_wakeup_latency`, root only). A shorter GIL switch interval
+    body runs (:func:`cpu_wakeup_latency`, root only; idle spinners where the kernel has no idle
+    driver). A shorter GIL switch interval
     was measured too (0.2 ms against the default 5 ms) and brought no gain.
     """
     enabled = gc.isenabled()
     freeze_heap()
     gc.disable()
     tighten_timer_slack()
-    policy = _raise_priority()
     try:
-        with cpu_wakeup_latency():
-            yield
+        with cpu_wakeup_latency():  # first: its spinners must not inherit SCHED_FIFO
+            policy = _raise_priority()
+            try:
+                yield
+            finally:
+                if policy is not None:
+                    os.sched_setscheduler(0, *policy)
     finally:
-        if policy is not None:
-            os.sched_setscheduler(0, *policy)
         gc.unfreeze()
         if enabled:
             gc.enable()
@@ -88,7 +105,10 @@ def cpu_wakeup_latency(max_us: int = 0) -> Iterator[bool]:
     An idle CPU then polls instead of halting. On a virtual machine a halted vCPU leaves the
     guest and waits for the host to wake it: measured here, a 1 kHz thread's wake-ups were over
     a period late 0.013-0.15 % of the time halting and 0-0.007 % polling (p99 128-144 against
-    36-54 us). The cost: idle CPUs burn power (the host's CPU time) while it holds.
+    36-54 us). Where the kernel has no idle driver (``cpuidle`` says ``none``, as in a Firecracker
+    microVM) an idle CPU always halts and the request changes nothing; for ``max_us`` 0 it is
+    then kept by :func:`idle_spinners`. The cost: idle CPUs burn power (the host's CPU time)
+    while it holds.
     """
     try:
         fd = os.open(CPU_LATENCY_DEVICE, os.O_WRONLY)
@@ -101,9 +121,43 @@ def cpu_wakeup_latency(max_us: int = 0) -> Iterator[bool]:
         except OSError:
             yield False
         else:
-            yield True
+            spin = max_us == 0 and idle_driver() == "none"
+            with idle_spinners() if spin else contextlib.nullcontext():
+                yield True
     finally:
         os.close(fd)  # closing withdraws the request
+
+
+def idle_driver() -> str:
+    """The kernel's cpuidle driver (``none`` when it has none; ``""`` when not Linux)."""
+    try:
+        return Path(CPUIDLE_DRIVER).read_text().strip()
+    except OSError:
+        return ""
+
+
+@contextmanager
+def idle_spinners() -> Iterator[list[int]]:
+    """One process per CPU, pinned to it, spinning at ``SCHED_IDLE`` (the lowest priority, below
+    every normal and real-time thread) while the body runs; yields their pids.
+
+    A CPU that runs a spinner never halts, so a thread woken on it starts at once, on warm
+    caches, as under a polling idle driver. Measured by hand on a Firecracker microVM without
+    one (docs/rig.md): a 1 ms session missed 10.4 / 10.0 % of its deadlines with spinners
+    against 28.4 / 35.2 % without, and a bare thread's short work after a wake-up took half as
+    long. The spinners die with this process (parent-death signal) and end with the body.
+    """
+    spinners: list[subprocess.Popen[bytes]] = []
+    try:
+        for cpu in sorted(os.sched_getaffinity(0)):
+            code = SPINNER.format(cpu=cpu, parent=os.getpid())
+            spinners.append(subprocess.Popen([sys.executable, "-S", "-c", code]))
+        yield [spinner.pid for spinner in spinners]
+    finally:
+        for spinner in spinners:
+            spinner.kill()
+        for spinner in spinners:
+            spinner.wait()
 
 
 def _raise_priority() -> tuple[int, os.sched_param] | None:

@@ -1,5 +1,6 @@
-"""The real-time helpers: the CPU wake-up latency request is held exactly while a body runs;
-a frozen heap is out of the collector's reach, after garbage is collected.
+"""The real-time helpers: the CPU wake-up latency request is held exactly while a body runs, with
+idle spinners (one per CPU, dying with their parent) where the kernel has no idle driver; a
+frozen heap is out of the collector's reach, after garbage is collected.
 
 Other processes (a session of a test suite running beside this one) may hold requests of their
 own, so the tests look at the limit in force only as an upper bound and count this process's
@@ -10,10 +11,13 @@ import struct
 import subprocess
 import sys
 import textwrap
+import time
+from collections.abc import Callable
+from pathlib import Path
 
 import pytest
 
-from hilrig.timing import CPU_LATENCY_DEVICE, cpu_wakeup_latency, realtime_python
+from hilrig.timing import CPU_LATENCY_DEVICE, cpu_wakeup_latency, idle_spinners, realtime_python
 
 
 def current_limit_us() -> int:
@@ -93,3 +97,72 @@ def test_freeze_heap_collects_then_freezes_everything_alive() -> None:
     assert collected == "True"  # the cycle was collected first
     assert int(frozen) >= 50_000  # every kept node is frozen
     assert int(left) < int(tracked) // 100  # what a full pass still walks: almost nothing
+
+
+SCHED_IDLE_POLICY = 5  # /proc/PID/stat field 41
+
+
+def policy_and_cpus(pid: int) -> tuple[int, set[int]] | None:
+    """A live process's scheduling policy and allowed CPUs (None once it is gone or a zombie)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        if stat[0] == "Z":
+            return None
+        return int(stat[38]), os.sched_getaffinity(pid)
+    except (OSError, ProcessLookupError):
+        return None
+
+
+def eventually(predicate: Callable[[], bool], what: str, timeout_s: float = 60.0) -> None:
+    """Wait until ``predicate()`` (a bound against a hang, not a timing assertion)."""
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        assert time.monotonic() < deadline, what
+        time.sleep(0.05)
+
+
+def test_one_idle_spinner_per_cpu_while_the_body_runs_and_none_after() -> None:
+    cpus = sorted(os.sched_getaffinity(0))
+    with idle_spinners() as pids:
+        assert len(pids) == len(cpus)
+        expected = [(SCHED_IDLE_POLICY, {cpu}) for cpu in cpus]  # pinned, each to its CPU
+        eventually(lambda: [policy_and_cpus(pid) for pid in pids] == expected, "spinners set")
+    assert [policy_and_cpus(pid) for pid in pids] == [None] * len(cpus)
+
+
+SPINNING_CHILD = textwrap.dedent(
+    """
+    import time
+    from hilrig.timing import idle_spinners
+
+    with idle_spinners() as pids:
+        print(*pids, flush=True)
+        time.sleep(600)
+    """
+)
+
+
+def test_the_spinners_die_with_their_parent() -> None:
+    parent = subprocess.Popen([sys.executable, "-c", SPINNING_CHILD], stdout=subprocess.PIPE)
+    assert parent.stdout is not None
+    pids = [int(pid) for pid in parent.stdout.readline().split()]
+    assert len(pids) == len(os.sched_getaffinity(0))
+    eventually(lambda: all(policy_and_cpus(pid) for pid in pids), "spinners started")
+    parent.kill()  # SIGKILL: no finally runs in the parent
+    parent.wait()
+    eventually(lambda: not any(policy_and_cpus(pid) for pid in pids), "spinners left running")
+
+
+@needs_device
+@pytest.mark.parametrize(("driver", "spinners"), [("none", True), ("haltpoll", False)])
+def test_the_request_spins_the_cpus_only_where_no_idle_driver_can_keep_them_awake(
+    driver: str, spinners: bool, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "driver").write_text(f"{driver}\n")
+    monkeypatch.setattr("hilrig.timing.CPUIDLE_DRIVER", str(tmp_path / "driver"))
+    me = os.getpid()
+    with cpu_wakeup_latency() as held:
+        children = Path(f"/proc/{me}/task/{me}/children").read_text().split()
+        assert held and bool(children) == spinners
+    with cpu_wakeup_latency(50):  # a request that idle states may still meet: no spinners
+        assert Path(f"/proc/{me}/task/{me}/children").read_text().split() == []
