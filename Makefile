@@ -19,8 +19,8 @@ $(STAMP): pyproject.toml constraints.txt
 demo: $(STAMP)  ## the main job: the paper table, then its collisions recorded on the emulated rig
 	$(BIN)/hilrig demo --out $(OUT)/demo
 
-test: lint typecheck $(CHROMIUM)  ## lint, type-check and run every test (one worker per core)
-	$(BIN)/python -m pytest -n auto --dist loadfile
+test: lint typecheck $(CHROMIUM)  ## lint, type-check and run every test
+	$(BIN)/python -m pytest
 
 $(CHROMIUM):
 	$(SUDO) apt-get update -qq

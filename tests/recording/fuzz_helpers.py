@@ -13,7 +13,6 @@ from pathlib import Path
 from types import FrameType
 
 import pandas as pd
-from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 from mcap.reader import make_reader
 from recording_helpers import write_session
@@ -22,14 +21,6 @@ from typer.testing import CliRunner, Result
 from hilrig.cli import app
 from hilrig.errors import HilrigError
 from hilrig.recording import load
-
-#: The fuzz tests' settings: the same damaged files on every run, no time limit per example.
-FUZZ = settings(
-    derandomize=True,
-    database=None,
-    deadline=None,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-)
 
 #: (topic, log time, publish time, sequence, data) of one message, as the official reader sees it.
 Message = tuple[str, int, int, int, bytes]

@@ -6,10 +6,8 @@ Each call either gives correct data for what is intact (frames equal to the unda
 rows; messages ``recover`` keeps byte-identical to the original's through the official reader)
 and says the file is damaged whenever it is, or fails with one ``error:`` line (exit 2); never a
 traceback, never a hang, never an output left behind by a failure. 2000 files go through the
-library here (info with and without the full check, load, recover);
-``test_fuzz_damaged_files_cli.py`` puts 250 through the command line's info, recover and export
-and 100 through replay and analyze (a file of their own, so that ``make test``'s workers run the
-two halves at once).
+library (info with and without the full check, load, recover), 250 through the command line's
+info, recover and export, 100 through replay and analyze.
 """
 
 from __future__ import annotations
@@ -22,21 +20,37 @@ from pathlib import Path
 import pandas as pd
 import pytest
 from fuzz_helpers import (
-    FUZZ,
     Base,
     bounded,
     changes,
     damaged,
     hilrig,
     official_messages,
+    write_base,
 )
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hilrig.errors import HilrigError, OutputError, RecordingError
 from hilrig.recording import RecordingWarning, inspect, load, recover
 
 pytestmark = pytest.mark.filterwarnings("ignore::hilrig.recording.RecordingWarning")
+FUZZ = settings(
+    derandomize=True,
+    database=None,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory: pytest.TempPathFactory) -> Base:
+    return write_base(tmp_path_factory.mktemp("fuzz"))
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("fuzz-work")
 
 
 def one_line(err: HilrigError, path: Path) -> None:
@@ -125,6 +139,60 @@ def test_damaged_files_through_the_library(base: Base, work: Path, data: st.Data
         out = folder / "out" / "recovered.mcap"
         out.parent.mkdir()
         check_recover(path, base, out, damaged_file=is_damaged)
+    finally:
+        shutil.rmtree(folder)
+
+
+@settings(FUZZ, max_examples=250)
+@given(data=st.data())
+def test_damaged_files_through_the_command_line(
+    base: Base, work: Path, data: st.DataObject
+) -> None:
+    damaged_bytes = damaged(base.data, data.draw(changes(base)))
+    folder = Path(tempfile.mkdtemp(dir=work))
+    try:
+        path = folder / "damaged.mcap"
+        path.write_bytes(damaged_bytes)
+        whole = 1 if damaged_bytes != base.data else 0
+        quick = hilrig("info", str(path))
+        full = hilrig("info", "--check", str(path))
+        assert quick.exit_code == full.exit_code == (2 if quick.exit_code == 2 else whole)
+        out = folder / "recovered"
+        out.mkdir()
+        recovered = hilrig("recover", str(path), "-o", str(out / "r.mcap"))
+        assert recovered.exit_code == (2 if quick.exit_code == 2 else whole)
+        left = sorted(p.name for p in out.iterdir())
+        assert left == ([] if recovered.exit_code == 2 else ["r.mcap"])
+        tables = folder / "tables"
+        exported = hilrig("export", str(path), "--out", str(tables))
+        lines = exported.stdout.splitlines()
+        written = [line.removeprefix("wrote ") for line in lines if line.startswith("wrote ")]
+        if exported.exit_code == 2:
+            assert not tables.exists()
+        else:
+            assert sorted(str(p) for p in tables.iterdir()) == sorted(written)
+            assert written and all(w.endswith((".parquet", ".json")) for w in written)
+    finally:
+        shutil.rmtree(folder)
+
+
+@settings(FUZZ, max_examples=100)
+@given(data=st.data())
+def test_damaged_files_through_replay_and_analyze(
+    base: Base, work: Path, data: st.DataObject
+) -> None:
+    damaged_bytes = damaged(base.data, data.draw(changes(base)))
+    folder = Path(tempfile.mkdtemp(dir=work))
+    try:
+        path = folder / "damaged.mcap"
+        path.write_bytes(damaged_bytes)
+        out = folder / "replayed"
+        out.mkdir()
+        result = out / "r.parquet"
+        replayed = hilrig("replay", str(path), "-c", "fixed", "-o", str(result), "-j", "1")
+        left = sorted(p.name for p in out.iterdir())
+        assert left == ([] if replayed.exit_code == 2 else ["r.parquet"]), replayed
+        hilrig("analyze", str(path))
     finally:
         shutil.rmtree(folder)
 
