@@ -82,10 +82,18 @@ def test_a_session_streams_its_live_view_to_a_rerun_server(
     t_ns = state.index.to_numpy() - state.index[0]  # the file's log times share the zero
     duration_s = t_ns[-1] / 1e9  # the ticks' span (a loaded machine may merge some frames)
     t, force = rrd.scalars(paths.input_series("x"))
-    assert len(t) == pytest.approx(50 * duration_s, abs=3)
     assert t.min() >= 0 and t.max() <= duration_s
     rows = np.searchsorted(t_ns, np.round(t * 1e9).astype(np.int64))
     np.testing.assert_allclose(t_ns[rows] / 1e9, t, rtol=0, atol=2e-9)
+    # the first tick of every 20 ms period on the loop's clock, whose phase the file does not
+    # keep: some placement of the periods' bounds gives exactly these ticks (not a count from
+    # the rate: a stall of a slow machine leaves whole periods without a tick)
+    period_ns = 20_000_000
+    firsts = [
+        np.flatnonzero(np.diff((t_ns + phase) // period_ns, prepend=-1) != 0)
+        for phase in np.unique(-t_ns % period_ns)
+    ]
+    assert any(np.array_equal(kept, rows) for kept in firsts)
     assert force.tolist() == state["force_0"].to_numpy()[rows].tolist()
     t_events, _ = rrd.temporal(paths.EVENTS, "TextLog:text")
     assert len(t_events) == len(result.events)
