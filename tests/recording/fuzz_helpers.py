@@ -12,11 +12,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
 
+import numpy as np
 import pandas as pd
 from hypothesis import strategies as st
 from mcap.reader import make_reader
 from recording_helpers import write_session
-from typer.testing import CliRunner, Result
+from click.testing import CliRunner, Result
+from typer.main import get_command
 
 from hilrig.cli import app
 from hilrig.errors import HilrigError
@@ -41,12 +43,26 @@ class Base:
     ) -> None:
         self.path, self.data, self.regions = path, data, regions
         self.messages, self.frames, self.counts = messages, frames, counts
+        self.columns = {
+            topic: {name: values(column) for name, column in frame.items()}
+            for topic, frame in frames.items()
+        }
 
     def __repr__(self) -> str:
         return f"Base({self.path})"
 
     def _repr_pretty_(self, printer: object, cycle: bool) -> None:  # what hypothesis prints
         printer.text(repr(self))  # type: ignore[attr-defined]
+
+
+def values(column: pd.Series) -> np.ndarray:
+    """A column's values as one array; a categorical's as its categories' values (None where
+    missing), so that two categoricals compare by value whatever their categories."""
+    if isinstance(column.dtype, pd.CategoricalDtype):
+        codes = column.cat.codes.to_numpy()
+        categories = np.append(column.cat.categories.to_numpy(dtype=object), None)
+        return categories[np.where(codes >= 0, codes, len(categories) - 1)]
+    return column.to_numpy()
 
 
 def official_messages(path: Path) -> Counter[Message]:
@@ -158,10 +174,15 @@ class Run:
     stderr: str
 
 
+#: The command line as click runs it, built once: typer's CliRunner builds it from the app's
+#: functions on every call (about 0.1 s each on a slow machine, most of this fuzz's time).
+COMMAND = get_command(app)
+
+
 def hilrig(*args: str, seconds: float = 20.0) -> Run:
     """``hilrig ARGS`` in-process; never a traceback, never a hang, an error is one line."""
     with bounded(seconds):
-        result: Result = CliRunner().invoke(app, list(args), env={"COLUMNS": "200"})
+        result: Result = CliRunner().invoke(COMMAND, list(args), env={"COLUMNS": "200"})
     err = result.exception
     if isinstance(err, HilrigError):  # what hilrig.cli.main does with it
         run = Run(2, result.stdout, f"error: {err}\n")
