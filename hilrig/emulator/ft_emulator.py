@@ -43,9 +43,11 @@ from numpy.typing import NDArray
 
 from hilrig.drivers.ft.gravity import STANDARD_GRAVITY_IN_BASE, ToolLoad
 from hilrig.drivers.ft.wire import FRAME, HEADER, KGF_N, START_COMMAND, STOP_COMMAND, TAIL
+from hilrig.emulator.frame_kernels import ft_frame_into
 from hilrig.emulator.outbox import Outbox
 from hilrig.emulator.pty_link import PtyLink
 from hilrig.emulator.slots import Device, SlotLoop
+from hilrig.timing import bound_kernel
 
 Source = Callable[[float], Sequence[float]]
 Orientation = Callable[[float], NDArray[np.float64]]
@@ -124,11 +126,26 @@ class FtEmulator(Device):
         self._orientation = orientation
         self._on_sent = on_sent
         self._scale = 1.0 / self.config.kgf_scale
-        self._bias = self.config.bias_in_sensor
-        self._tool_map = self.config.tool.wrench_map().tolist()
-        self._gravity = self.config.gravity_in_base
         self._rng = np.random.default_rng(self.config.seed)
-        self._noise: list[list[float]] = []
+        self._noise = np.zeros((_NOISE_BLOCK, 6))  # drawn a block at a time, used last row first
+        self._noise_rows = 0  # rows of the block not used yet
+        self._wrench = np.zeros(6)  # the source's, this slot
+        self._rotation = np.zeros((3, 3))  # R_base_sensor, this slot
+        self._values = np.zeros(6)  # this slot's device values (kgf, kgf*m)
+        self._frame = np.frombuffer(bytearray(FRAME.pack(HEADER, *self._values, TAIL)), np.uint8)
+        self._make_frame = bound_kernel(
+            ft_frame_into,
+            self._frame,
+            self._values,
+            np.zeros(6, dtype=np.float32),
+            self._wrench,
+            np.array(self.config.bias_in_sensor, dtype=np.float64),
+            self._noise,
+            self._rotation,
+            np.array(self.config.gravity_in_base, dtype=np.float64),
+            np.ascontiguousarray(self.config.tool.wrench_map(), dtype=np.float64),
+            last=(0, True, 1.0),
+        )
         self._requests: deque[Callable[[int], None]] = deque()  # faults, applied by tick()
         self._loop: SlotLoop | None = None
         self._pty: PtyLink | None = None
@@ -284,16 +301,11 @@ class FtEmulator(Device):
 
     def _send(self, slot_ns: int) -> None:
         t_s = (slot_ns - self._t0_ns) * 1e-9
-        values = self._device_values(t_s)
-        if self._header_left:
-            self._header_left -= 1
-            values = [_with_header_bytes(v) for v in values]
-            self.header_frames += 1
-        if self._bad_left:
-            self._bad_left -= 1
-            values[2] = _BAD_VALUES[self.bad_value_frames % len(_BAD_VALUES)]
-            self.bad_value_frames += 1
-        frame = FRAME.pack(HEADER, *values, TAIL)
+        self._device_values(t_s)
+        if self._header_left or self._bad_left:
+            frame = self._faulty_frame()
+        else:
+            frame = self._frame.tobytes()
         if self._split_left:
             self._split_left -= 1
             cut = int(self._rng.integers(1, len(frame)))
@@ -309,26 +321,32 @@ class FtEmulator(Device):
         if self._out.frames_sent > sent:
             self._on_sent(t_s, sent_ns)
 
-    def _device_values(self, t_s: float) -> list[float]:
-        """Source + bias + noise + tool gravity at ``t_s``, in device units (kgf, kgf*m)."""
-        external = self._source(t_s)
-        if not self._noise:
+    def _device_values(self, t_s: float) -> None:
+        """Source + bias + noise + tool gravity at ``t_s``, in device units (kgf, kgf*m), into
+        ``_values`` and the frame's bytes (one compiled call)."""
+        self._wrench[:] = self._source(t_s)
+        if not self._noise_rows:
             std = [self.config.noise_force_n] * 3 + [self.config.noise_torque_nm] * 3
-            self._noise = self._rng.normal(0.0, std, size=(_NOISE_BLOCK, 6)).tolist()
-        noise = self._noise.pop()
-        tool: Sequence[float] = (0.0,) * 6
+            self._noise[...] = self._rng.normal(0.0, std, size=(_NOISE_BLOCK, 6))
+            self._noise_rows = _NOISE_BLOCK
+        self._noise_rows -= 1
         if self._orientation is not None:
-            (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = self._orientation(t_s).tolist()
-            gx, gy, gz = self._gravity  # gravity in the sensor frame: R^T g
-            sx = r00 * gx + r10 * gy + r20 * gz
-            sy = r01 * gx + r11 * gy + r21 * gz
-            sz = r02 * gx + r12 * gy + r22 * gz
-            tool = [m0 * sx + m1 * sy + m2 * sz for m0, m1, m2 in self._tool_map]
-        scale = self._scale
-        return [
-            (e + b + n + g) * scale
-            for e, b, n, g in zip(external, self._bias, noise, tool, strict=True)
-        ]
+            self._rotation[...] = self._orientation(t_s)
+        self._make_frame(self._noise_rows, self._orientation is not None, self._scale)
+
+    def _faulty_frame(self) -> bytes:
+        """This slot's frame with the faults asked for: header bytes inside the floats, or a
+        value that is not one."""
+        values = self._values.tolist()
+        if self._header_left:
+            self._header_left -= 1
+            values = [_with_header_bytes(v) for v in values]
+            self.header_frames += 1
+        if self._bad_left:
+            self._bad_left -= 1
+            values[2] = _BAD_VALUES[self.bad_value_frames % len(_BAD_VALUES)]
+            self.bad_value_frames += 1
+        return FRAME.pack(HEADER, *values, TAIL)
 
 
 def _with_header_bytes(value: float) -> float:

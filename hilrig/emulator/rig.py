@@ -31,12 +31,15 @@ import numpy as np
 
 from hilrig.drivers.ft.gravity import ToolLoad
 from hilrig.drivers.joint_targets.wire import JointTargets
-from hilrig.drivers.robot_state.wire import RobotState
+from hilrig.drivers.robot_state.wire import FRAME_BYTES, JOINTS, LENGTH, MAGIC
+from hilrig.emulator.frame_kernels import state_frame_into
 from hilrig.emulator.ft_emulator import EmulatorConfig, FtEmulator
 from hilrig.emulator.modbus_server import EmulatedModbusServer
 from hilrig.emulator.robot_state_server import EmulatedRobotStateServer
 from hilrig.emulator.slots import SlotLoop
 from hilrig.robot import RobotModel
+from hilrig.robot.kinematics import CompiledChain, fk_into
+from hilrig.timing import bound_kernel
 from hilrig.world.plant import JointServoPlant
 from hilrig.world.scenarios import Scenario, scenario
 
@@ -119,9 +122,31 @@ class EmulatedRig:
         self.plant = JointServoPlant(
             self._model.limits, q0_rad=np.asarray(self.config.q0_rad, dtype=np.float64)
         )
-        self._pose = self._model.fk(self.plant.q_rad)
+        q_rad, qd_rad_s = self.plant.live_arrays()
+        chain = CompiledChain.from_model(self._model)
+        self._pose = np.empty((4, 4))  # the sensor's, this slot (updated in place)
+        self._update_pose = bound_kernel(
+            fk_into, chain.frames, chain.axes, q_rad, self._pose, last=()
+        )
+        self._update_pose()
         self._rng = np.random.default_rng(self.config.seed)
-        self._noise: list[list[float]] = []
+        self._noise = np.zeros((_NOISE_BLOCK, 6))  # joint torque noise, used last row first
+        self._noise_rows = 0
+        self._torque = np.zeros(6)  # the scenario's, this slot
+        self._state_frame = np.zeros(FRAME_BYTES, dtype=np.uint8)
+        self._state_frame[:6] = np.frombuffer(MAGIC + LENGTH.to_bytes(2, "little"), np.uint8)
+        self._make_state = bound_kernel(
+            state_frame_into,
+            self._state_frame,
+            np.zeros(3 * JOINTS),
+            np.zeros(3, dtype=np.uint32),
+            np.zeros(1, dtype=np.int64),
+            q_rad,
+            qd_rad_s,
+            self._torque,
+            self._noise,
+            last=(0, 0, 0, 0),
+        )
         self._slot_t_s = 0.0
         self._scenario_t0_ns: int | None = None  # None: the scenario's clock waits at 0
         self.loop = SlotLoop(round(1e9 / self.config.rate_hz), self._slot)
@@ -216,7 +241,7 @@ class EmulatedRig:
 
     def _slot(self, slot_ns: int, now_ns: int) -> None:
         self.plant.advance(now_ns)
-        self._pose = self._model.fk(self.plant.q_rad)
+        self._update_pose()
         t0_ns = self._scenario_t0_ns
         self._slot_t_s = 0.0 if t0_ns is None else max(slot_ns - t0_ns, 0) * 1e-9
         self.robot_state.tick(slot_ns)
@@ -231,16 +256,17 @@ class EmulatedRig:
     def _targets(self, targets: JointTargets) -> None:
         self.plant.set_targets(targets, time.monotonic_ns())
 
-    def _state(self, sequence: int) -> RobotState:
-        if not self._noise:
+    def _state(self, sequence: int) -> bytes:
+        """This slot's joint-state frame: the plant's q and qd, the scenario's joint torques
+        plus noise (one compiled call)."""
+        if not self._noise_rows:
             scale = self.config.joint_torque_noise_nm
-            self._noise = self._rng.normal(scale=scale, size=(_NOISE_BLOCK, 6)).tolist()
-        noise = self._noise.pop()
-        torque = self.scenario.joint_torque(self._slot_t_s)
+            self._noise[...] = self._rng.normal(scale=scale, size=(_NOISE_BLOCK, 6))
+            self._noise_rows = _NOISE_BLOCK
+        self._noise_rows -= 1
+        self._torque[:] = self.scenario.joint_torque(self._slot_t_s)
         # the emulated controller's clock is this host's monotonic clock (shared by every
         # process here), so a reader can measure the stream's latency from device time
-        return self.plant.state(
-            sequence,
-            time.monotonic_ns(),
-            tuple(t + n for t, n in zip(torque, noise, strict=True)),
-        )
+        status = int(self.plant.status())
+        self._make_state(self._noise_rows, sequence, time.monotonic_ns(), status)
+        return self._state_frame.tobytes()

@@ -2,10 +2,10 @@
 
 Binds 127.0.0.1 with an OS-chosen port unless told otherwise. A device of a :class:`SlotLoop` (or
 alone with ``start()``/``stop()``): the loop accepts clients as they connect, and each ``tick``
-sends ``source(sequence)`` as a wire frame (robot_state/wire.py) to every client (the sequence
-counts slots, so a stall or a skipped slot shows as a gap). A client too slow to take its bytes
-loses whole frames (counted), never half of one; a frame counts as sent once the kernel has all of
-it. Faults, from any thread, applied at the next slot: ``drop_links(down_s)`` closes every client
+sends ``source(sequence)`` as a wire frame (robot_state/wire.py; a source may give the frame's
+bytes itself) to every client (the sequence counts slots, so a stall or a skipped slot shows as a
+gap). A client too slow to take its bytes loses whole frames (counted), never half of one; a
+frame counts as sent once the kernel has all of it. Faults, from any thread, applied at the next slot: ``drop_links(down_s)`` closes every client
 socket, ``stall(s)`` stops sending, ``inject(bytes)`` sends garbage between frames.
 """
 
@@ -55,7 +55,7 @@ class EmulatedRobotStateServer(Device):
 
     def __init__(
         self,
-        source: Callable[[int], RobotState],
+        source: Callable[[int], RobotState | bytes],
         *,
         rate_hz: float = 1000.0,
         host: str = "127.0.0.1",
@@ -104,7 +104,8 @@ class EmulatedRobotStateServer(Device):
         self._sequence += 1
         if slot_ns < self._stall_until_ns or self._down_until_ns is not None:
             return
-        frame = encode(self._source(sequence))
+        state = self._source(sequence)
+        frame = state if isinstance(state, bytes) else encode(state)
         self._ticks += 1
         garbage, self._garbage = self._garbage, b""
         for fd, client in list(self._clients.items()):

@@ -146,23 +146,30 @@ class JointServoPlant:
             steps,
         )
 
-    def state(self, sequence: int, device_t_ns: int, torque_nm: tuple[float, ...]) -> RobotState:
-        """The joint-state frame to stream now, with measured joint torques (N*m)."""
+    def status(self) -> RobotStatus:
+        """The status bits a frame sent now carries."""
         status = RobotStatus.ENABLED
         if self._stopped:
-            status |= RobotStatus.PROTECTIVE_STOP
-        elif self._t_ns is not None and self.tracking(self._t_ns):
-            status |= RobotStatus.TRACKING
-        else:
-            status |= RobotStatus.HOLDING
+            return status | RobotStatus.PROTECTIVE_STOP
+        if self._t_ns is not None and self.tracking(self._t_ns):
+            return status | RobotStatus.TRACKING
+        return status | RobotStatus.HOLDING
+
+    def state(self, sequence: int, device_t_ns: int, torque_nm: tuple[float, ...]) -> RobotState:
+        """The joint-state frame to stream now, with measured joint torques (N*m)."""
         return RobotState(
             sequence,
             device_t_ns,
             tuple(self._q.tolist()),
             tuple(self._qd.tolist()),
             torque_nm,
-            status,
+            self.status(),
         )
+
+    def live_arrays(self) -> tuple[Vector, Vector]:
+        """The joint positions (rad) and velocities (rad/s) themselves, updated in place by
+        ``advance``: for compiled readers bound to them (read, never write)."""
+        return self._q, self._qd
 
     @property
     def q_rad(self) -> Vector:
