@@ -107,8 +107,11 @@ class JointServoPlant:
             self._last_count_ns = now_ns
         self._mode = targets.mode
         self._stopped = targets.mode is Mode.STOP
-        if targets.mode is Mode.TRACK:
-            self._target = np.clip(np.asarray(targets.q_rad), self._limits[0], self._limits[1])
+        if targets.mode is Mode.TRACK:  # np.clip's own wrapper costs more than both ufuncs
+            target = self._target
+            np.minimum(
+                np.maximum(targets.q_rad, self._limits[0], out=target), self._limits[1], out=target
+            )
 
     def tracking(self, now_ns: int) -> bool:
         """True while the servo follows its targets (TRACK, fresh watchdog count, no stop)."""
