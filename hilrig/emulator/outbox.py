@@ -29,6 +29,17 @@ class Outbox:
 
     def put(self, data: bytes, *, frame: bool = True) -> None:
         """Queue ``data`` (a whole frame unless ``frame`` is False) and write what fits."""
+        if not self._pending and len(data) <= self._limit:  # the usual case: straight through
+            written = self._write(data)
+            self._queued += len(data)
+            self._written += written
+            if written < len(data):
+                self._pending += data[written:]
+                if frame:
+                    self._ends.append(self._queued)
+            elif frame:
+                self.frames_sent += 1
+            return
         self.flush()  # first: a backlog at its limit drains as soon as the reader reads again
         if frame and len(self._pending) + len(data) > self._limit:
             self.frames_dropped += 1
