@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from hilrig.drivers.joint_targets.wire import JOINTS, JointTargets, Mode
 from hilrig.drivers.robot_state.wire import RobotState, RobotStatus
 from hilrig.robot.limits import JointLimits
+from hilrig.timing import bound_kernel
 
 MAX_SUBSTEPS = 200  # per advance: at most 0.1 s at the default substep, no catch-up bursts
 
@@ -97,7 +98,15 @@ class JointServoPlant:
         self._was_tracking = False
         self.targets_received = 0
         self.watchdog_trips = 0
-        self._step(hold=True, steps=0)  # load (or compile) the kernel now, not in a slot
+        # the kernel loaded (or compiled) now, not in a slot, bound to the arrays it updates
+        self._integrate = bound_kernel(
+            integrate,
+            self._q,
+            self._qd,
+            self._qdd,
+            self._target,
+            last=(True, self._limits, self._wn, self._substep_s, 0),
+        )
 
     def set_targets(self, targets: JointTargets, now_ns: int) -> None:
         """Take one Modbus write; targets are clamped to the position limits."""
@@ -137,17 +146,7 @@ class JointServoPlant:
         self._t_ns += steps * self._substep_ns
 
     def _step(self, *, hold: bool, steps: int) -> None:
-        integrate(
-            self._q,
-            self._qd,
-            self._qdd,
-            self._target,
-            hold,
-            self._limits,
-            self._wn,
-            self._substep_s,
-            steps,
-        )
+        self._integrate(hold, self._limits, self._wn, self._substep_s, steps)
 
     def status(self) -> RobotStatus:
         """The status bits a frame sent now carries."""
