@@ -134,7 +134,7 @@ def analyze_command(
             written = write_dataset(dataset_frame(analyses), out, overwrite=overwrite)
         else:
             written = write_table(tables, out, overwrite=overwrite)
-        console.print(f"wrote {written}")
+        console.print(f"wrote {written}", markup=False, soft_wrap=True)
 
 
 def print_source(console: Console, analysis: Analysis, baseline: str, delta: float) -> pd.DataFrame:

@@ -180,7 +180,7 @@ def recover_command(
 
     result = recover(file, out)
     console = Console(highlight=False)
-    console.print(f"wrote {result.output}", markup=False)
+    console.print(f"wrote {result.output}", markup=False, soft_wrap=True)
     console.print(result.summary(), soft_wrap=True, markup=False)
     _exit_if_damaged(result.problems)
 
@@ -233,6 +233,6 @@ def export_command(
             progress=lambda done, total: bar.update(task, completed=done, total=total),
         )
     for path in written:
-        console.print(f"wrote {path}", markup=False)
+        console.print(f"wrote {path}", markup=False, soft_wrap=True)
     _problems(Console(stderr=True), problems)
     _exit_if_damaged(problems)

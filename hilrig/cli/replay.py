@@ -291,7 +291,7 @@ def _offline(
             errors.print(Text.assemble(("note: ", "yellow"), note))
         write_outputs(replayed, outputs, progress=progress)
     for path in out:  # all of them in place, or none
-        console.print(f"wrote {path}")
+        console.print(f"wrote {path}", markup=False, soft_wrap=True)
     console.print(_summary(replayed))
     _print_verdicts(console, replayed)
     if closed_loop:

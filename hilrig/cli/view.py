@@ -113,7 +113,7 @@ def view_command(
         return
     with new_files(save, overwrite=overwrite) as (temporary,):  # whole, or nothing left
         _show(console, replace(sink, path=temporary), scene, max_points, max_poses)
-    console.print(f"wrote {save}")
+    console.print(f"wrote {save}", markup=False, soft_wrap=True)
 
 
 def _show(console: Console, sink: Sink, scene: Scene, max_points: int, max_poses: int) -> None:

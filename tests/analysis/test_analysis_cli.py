@@ -55,6 +55,15 @@ def test_analyze_prints_the_events_and_writes_the_comparison(tmp_path: Path) -> 
     assert (rows["unit"] == "m").all() and (rows["value"] > 0.005).all()
 
 
+def test_the_written_path_is_printed_whole_on_one_line(tmp_path: Path) -> None:
+    """Piped output is 80 columns wide: a long path is still one line (to copy), and a path
+    is never read as markup."""
+    out = tmp_path / "a[red]b" / f"{'comparison-of-the-example-' * 4}.csv"
+    out.parent.mkdir()
+    printed = _analyze(str(EXAMPLE), "--out", str(out))
+    assert f"wrote {out}" in printed.splitlines()
+
+
 def test_a_replay_compares_every_run_against_the_chosen_baseline(tmp_path: Path) -> None:
     replay = write_replay(tmp_path / "paper.parquet", paper_replay_frame(duration_s=8.0))
     out = tmp_path / "comparison.parquet"
