@@ -5,8 +5,9 @@ alone with ``start()``/``stop()``): the loop accepts clients as they connect, an
 sends ``source(sequence)`` as a wire frame (robot_state/wire.py; a source may give the frame's
 bytes itself) to every client (the sequence counts slots, so a stall or a skipped slot shows as a
 gap). A client too slow to take its bytes loses whole frames (counted), never half of one; a
-frame counts as sent once the kernel has all of it. Faults, from any thread, applied at the next slot: ``drop_links(down_s)`` closes every client
-socket, ``stall(s)`` stops sending, ``inject(bytes)`` sends garbage between frames.
+frame counts as sent once the kernel has all of it. Faults, from any thread, applied at the next
+slot: ``drop_links(down_s)`` closes every client socket, ``stall(s)`` stops sending,
+``inject(bytes)`` sends garbage between frames.
 """
 
 from __future__ import annotations

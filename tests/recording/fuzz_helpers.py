@@ -14,10 +14,10 @@ from types import FrameType
 
 import numpy as np
 import pandas as pd
+from click.testing import CliRunner, Result
 from hypothesis import strategies as st
 from mcap.reader import make_reader
 from recording_helpers import write_session
-from click.testing import CliRunner, Result
 from typer.main import get_command
 
 from hilrig.cli import app
