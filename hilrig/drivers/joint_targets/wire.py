@@ -79,7 +79,7 @@ class RegisterMap:
         is not finite: no robot takes those). An emulated robot decodes a write a millisecond:
         precompiled structs, one finiteness check of the sum (float32 values cannot overflow
         it), the mode by table."""
-        start = min(self.targets[0], self.sequence[0], self.mode[0])
+        start = self.start
         at = self.targets[0] - start
         q = _FLOATS.unpack(_WORDS.pack(*registers[at : at + 2 * JOINTS]))
         if not math.isfinite(sum(q)):
