@@ -5,17 +5,18 @@ RTU-over-TCP gateways carry a serial bus. A device of a :class:`SlotLoop` (or al
 ``start()``/``stop()``): the loop accepts clients and answers each request as it arrives, with
 pymodbus's own RTU framer and PDU classes decoding requests and encoding replies, so the bytes
 on the wire are pymodbus's. Every accepted write of the register map (function 16) is decoded
-with ``RegisterMap.decode`` and handed to ``on_targets``; a write elsewhere gets ILLEGAL_ADDRESS,
-one that does not decode ILLEGAL_VALUE, any other function ILLEGAL_FUNCTION, and requests for
-another device id no reply (as on a bus). ``inject_exceptions`` (any thread) makes the next
-writes fail.
+with ``RegisterMap.decode`` and handed to ``on_targets`` (targets, counter, mode); a write
+elsewhere gets ILLEGAL_ADDRESS, one that does not decode ILLEGAL_VALUE, any other function
+ILLEGAL_FUNCTION, and requests for another device id no reply (as on a bus).
+``inject_exceptions`` (any thread) makes the next writes fail.
 
 A request that is exactly a write of the whole register map (device id, function, address,
-count and byte count as the map's, valid CRC) takes a compiled fast path: its registers are
-unpacked directly and the acknowledgement is pymodbus's, built once. pymodbus's decoding of a
-request costs about 20 us of Python here, a tenth of the rig's slot, at 1 kHz. Everything
-else goes through pymodbus; ``pymodbus_only=True`` sends every request that way, the reference
-against which ``tests/emulator/test_emulated_modbus_fast_path.py`` checks the fast path.
+count and byte count as the map's, valid CRC) takes a compiled fast path: one call
+(``RequestReader``) checks its CRC and decodes it into an array, and the acknowledgement is
+pymodbus's, built once. pymodbus's decoding of a request costs about 20 us of Python here, a
+tenth of the rig's slot, at 1 kHz. Everything else goes through pymodbus; ``pymodbus_only=True``
+sends every request that way, the reference against which
+``tests/emulator/test_emulated_modbus_fast_path.py`` checks the fast path.
 """
 
 from __future__ import annotations
@@ -23,8 +24,10 @@ from __future__ import annotations
 import socket
 import struct
 from collections import deque
-from collections.abc import Callable
+from typing import Protocol
 
+import numpy as np
+from numpy.typing import NDArray
 from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import ModbusIOException
 from pymodbus.framer import FramerRTU
@@ -34,14 +37,21 @@ from pymodbus.pdu.register_message import (
     WriteMultipleRegistersResponse,
 )
 
-from hilrig.drivers.joint_targets.frame import crc_ok, rtu_frame_size
-from hilrig.drivers.joint_targets.wire import JointTargets, RegisterMap
+from hilrig.drivers.joint_targets.frame import BAD_CRC, RequestReader, rtu_frame_size
+from hilrig.drivers.joint_targets.wire import JOINTS, Mode, RegisterMap
 from hilrig.emulator.slots import Device, SlotLoop, accept_client
 from hilrig.errors import ProtocolError
 
 MAX_REQUEST_BYTES = 1024  # unframed bytes beyond which a client's input is discarded
 MAX_REGISTERS = 0x7B  # the most function 16 may write (Modbus spec)
 WRITE_REGISTERS = 0x10  # function 16, write multiple registers
+
+
+class TargetsSink(Protocol):
+    """Takes each applied write: targets (rad; an array valid only during the call), the
+    watchdog counter and the mode."""
+
+    def __call__(self, q_rad: NDArray[np.float64], sequence: int, mode: Mode) -> None: ...
 
 
 class _Client:
@@ -63,7 +73,7 @@ class EmulatedModbusServer(Device):
 
     def __init__(
         self,
-        on_targets: Callable[[JointTargets], None],
+        on_targets: TargetsSink,
         *,
         register_map: RegisterMap | None = None,
         host: str = "127.0.0.1",
@@ -72,20 +82,14 @@ class EmulatedModbusServer(Device):
     ) -> None:
         self._map = register_map = register_map or RegisterMap()
         start, count, dev_id = register_map.start, register_map.count, register_map.device_id
-        # a whole-map write: its first 7 bytes, its size, and pymodbus's acknowledgement
-        self._write_header = (
-            b""
-            if pymodbus_only
-            else struct.pack(">BBHHB", dev_id, WRITE_REGISTERS, start, count, 2 * count)
-        )
-        self._write_size = len(self._write_header) + 2 * count + 2
-        self._write_registers = struct.Struct(f">{count}H")
+        # a whole-map write: its first 7 bytes, its compiled reader (loaded or compiled now,
+        # not in a slot on the session's first request), and pymodbus's acknowledgement
+        self._write_header = struct.pack(">BBHHB", dev_id, WRITE_REGISTERS, start, count, 2 * count)
+        self._reader = None if pymodbus_only else RequestReader(register_map)
         self._ack = FramerRTU(DecodePDU(is_server=True)).buildFrame(
             WriteMultipleRegistersResponse(address=start, count=count, dev_id=dev_id)
         )
-        # load (or compile) the CRC kernel now, not in a slot on the session's first request:
-        # for a bytearray, as requests arrive (numba compiles bytes and bytearray apart)
-        crc_ok(bytearray(self._ack), len(self._ack))
+        self._q_rad = np.zeros(JOINTS)  # a write decoded by pymodbus, as handed on
         self._on_targets = on_targets
         self._listener = socket.create_server((host, port))
         self._listener.setblocking(False)
@@ -147,13 +151,15 @@ class EmulatedModbusServer(Device):
             self._close(fd)
             return
         client.rx += data
+        reader = self._reader
         while client.rx:
-            if self._write_header and client.rx.startswith(self._write_header):
-                if len(client.rx) < self._write_size:
+            if reader is not None and client.rx.startswith(self._write_header):
+                if len(client.rx) < reader.size:
                     return  # the rest comes with the next segment
-                if crc_ok(client.rx, self._write_size):
-                    frame = self._answer_write(client)
-                    del client.rx[: self._write_size]
+                result = reader.read(client.rx)
+                if result != BAD_CRC:
+                    frame = self._answer_write(client, reader, result)
+                    del client.rx[: reader.size]
                     if not self._send(fd, frame):
                         return
                     continue
@@ -196,20 +202,25 @@ class EmulatedModbusServer(Device):
         if request.address != self._map.start or request.count != self._map.count:
             self.rejected += 1
             return ExceptionResponse(code, ExcCodes.ILLEGAL_ADDRESS, request.dev_id)
-        refused = self._apply(list(request.registers))
+        refused = self._apply_registers(list(request.registers))
         if refused is not None:
             return ExceptionResponse(code, refused, request.dev_id)
         return WriteMultipleRegistersResponse(
             address=request.address, count=request.count, dev_id=request.dev_id
         )
 
-    def _answer_write(self, client: _Client) -> bytes:
-        """The reply frame to the whole-map write (valid CRC) at the start of ``client.rx``."""
+    def _answer_write(self, client: _Client, reader: RequestReader, result: int) -> bytes:
+        """The reply frame to the whole-map write (valid CRC) that ``reader`` read into
+        ``result`` (``sequence << 16 | mode``, or why it does not decode)."""
         self._take_faults()
         refused = self._injected()
         if refused is None:
-            registers = self._write_registers.unpack_from(client.rx, len(self._write_header))
-            refused = self._apply(list(registers))
+            if result < 0:
+                self.rejected += 1
+                refused = ExcCodes.ILLEGAL_VALUE
+            else:
+                self.writes += 1
+                self._on_targets(reader.q_rad, result >> 16, reader.mode(result))
         if refused is None:
             return self._ack
         reply = ExceptionResponse(WRITE_REGISTERS, refused, self._map.device_id)
@@ -224,15 +235,17 @@ class EmulatedModbusServer(Device):
         self.exceptions_sent += 1
         return self._fail_code
 
-    def _apply(self, registers: list[int]) -> ExcCodes | None:
-        """Hand a write of the register map to the plant; None, or why it was refused."""
+    def _apply_registers(self, registers: list[int]) -> ExcCodes | None:
+        """Hand a write of the register map (decoded by pymodbus) on; None, or why it was
+        refused."""
         try:
             targets = self._map.decode(registers)
         except ProtocolError:
             self.rejected += 1
             return ExcCodes.ILLEGAL_VALUE
         self.writes += 1
-        self._on_targets(targets)
+        self._q_rad[:] = targets.q_rad
+        self._on_targets(self._q_rad, targets.sequence, targets.mode)
         return None
 
     def _send(self, fd: int, frame: bytes) -> bool:

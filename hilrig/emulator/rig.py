@@ -28,9 +28,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from hilrig.drivers.ft.gravity import ToolLoad
-from hilrig.drivers.joint_targets.wire import JointTargets
+from hilrig.drivers.joint_targets.wire import Mode
 from hilrig.drivers.robot_state.wire import FRAME_BYTES, JOINTS, LENGTH, MAGIC
 from hilrig.emulator.frame_kernels import state_frame_into
 from hilrig.emulator.ft_emulator import EmulatorConfig, FtEmulator
@@ -253,8 +254,8 @@ class EmulatedRig:
         time since the loop opened, runs ahead of it until the session's first tick)."""
         return self.scenario.wrench_in_sensor(self._slot_t_s, self._pose)
 
-    def _targets(self, targets: JointTargets) -> None:
-        self.plant.set_targets(targets, time.monotonic_ns())
+    def _targets(self, q_rad: NDArray[np.float64], sequence: int, mode: Mode) -> None:
+        self.plant.set_targets(q_rad, sequence, mode, time.monotonic_ns())
 
     def _state(self, sequence: int) -> bytes:
         """This slot's joint-state frame: the plant's q and qd, the scenario's joint torques

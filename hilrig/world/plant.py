@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from hilrig.drivers.joint_targets.wire import JOINTS, JointTargets, Mode
+from hilrig.drivers.joint_targets.wire import JOINTS, Mode
 from hilrig.drivers.robot_state.wire import RobotState, RobotStatus
 from hilrig.robot.limits import JointLimits
 from hilrig.timing import bound_kernel
@@ -58,6 +58,14 @@ def integrate(
             q[j] = pos
             qd[j] = vel
             qdd[j] = acc
+
+
+@njit(cache=True)
+def clamp_into(target: Vector, limits: NDArray[np.float64], q_rad: Vector) -> None:
+    """``q_rad`` clamped to the position limits (rows q_min, q_max of ``limits``) into
+    ``target``."""
+    for j in range(target.shape[0]):
+        target[j] = min(max(q_rad[j], limits[0, j]), limits[1, j])
 
 
 def servo_limits(limits: JointLimits) -> NDArray[np.float64]:
@@ -111,20 +119,19 @@ class JointServoPlant:
             self._target,
             last=(True, self._limits, self._wn, self._substep_s, 0),
         )
+        self._clamp = bound_kernel(clamp_into, self._target, self._limits, last=(self._q,))
 
-    def set_targets(self, targets: JointTargets, now_ns: int) -> None:
-        """Take one Modbus write; targets are clamped to the position limits."""
+    def set_targets(self, q_rad: Vector, sequence: int, mode: Mode, now_ns: int) -> None:
+        """Take one Modbus write: targets (rad, finite; clamped to the position limits), the
+        watchdog counter and the mode."""
         self.targets_received += 1
-        if targets.sequence != self._last_count:
-            self._last_count = targets.sequence
+        if sequence != self._last_count:
+            self._last_count = sequence
             self._last_count_ns = now_ns
-        self._mode = targets.mode
-        self._stopped = targets.mode is Mode.STOP
-        if targets.mode is Mode.TRACK:  # np.clip's own wrapper costs more than both ufuncs
-            target = self._target
-            np.minimum(
-                np.maximum(targets.q_rad, self._limits[0], out=target), self._limits[1], out=target
-            )
+        self._mode = mode
+        self._stopped = mode is Mode.STOP
+        if mode is Mode.TRACK:
+            self._clamp(q_rad)
 
     def tracking(self, now_ns: int) -> bool:
         """True while the servo follows its targets (TRACK, fresh watchdog count, no stop)."""

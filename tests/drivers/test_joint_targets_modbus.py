@@ -12,6 +12,7 @@ import threading
 import time
 from collections.abc import Iterator
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -45,9 +46,9 @@ class Received:
         self.targets: list[JointTargets] = []
         self.lock = threading.Lock()
 
-    def __call__(self, targets: JointTargets) -> None:
+    def __call__(self, q_rad: np.ndarray, sequence: int, mode: Mode) -> None:
         with self.lock:
-            self.targets.append(targets)
+            self.targets.append(JointTargets(tuple(q_rad.tolist()), sequence, mode))
 
 
 @pytest.fixture

@@ -13,6 +13,7 @@ import sys
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -25,8 +26,8 @@ from pymodbus.pdu.register_message import (
     WriteMultipleRegistersResponse,
 )
 
-from hilrig.drivers.joint_targets.wire import JointTargets, RegisterMap
-from hilrig.emulator.modbus_server import EmulatedModbusServer
+from hilrig.drivers.joint_targets.wire import JointTargets, Mode, RegisterMap
+from hilrig.emulator.modbus_server import EmulatedModbusServer, TargetsSink
 
 MAP = RegisterMap()
 FRAMER = FramerRTU(DecodePDU(is_server=False))
@@ -35,6 +36,15 @@ MARKER = FRAMER.buildFrame(ReadHoldingRegistersRequest(address=0, count=1, dev_i
 MARKER_REPLY = FramerRTU(DecodePDU(is_server=True)).buildFrame(
     ExceptionResponse(0x03, ExcCodes.ILLEGAL_FUNCTION, MAP.device_id)
 )
+
+
+def collecting(applied: list[JointTargets]) -> TargetsSink:
+    """A sink that keeps each write handed on, as the record it decodes to."""
+
+    def take(q_rad: np.ndarray, sequence: int, mode: Mode) -> None:
+        applied.append(JointTargets(tuple(q_rad.tolist()), sequence, mode))
+
+    return take
 
 
 @dataclass
@@ -52,15 +62,15 @@ def peers() -> Iterator[tuple[Peer, Peer]]:
     made = []
     for pymodbus_only in (False, True):
         applied: list[JointTargets] = []
-        server = EmulatedModbusServer(applied.append, pymodbus_only=pymodbus_only).start()
+        server = EmulatedModbusServer(collecting(applied), pymodbus_only=pymodbus_only).start()
         sock = socket.create_connection(("127.0.0.1", server.port), timeout=10)
         made.append(Peer(server, sock, applied))
     fast = made[0]
     answer = fast.server._answer_write
 
-    def counted(client: object) -> bytes:
+    def counted(client: object, reader: object, result: int) -> bytes:
         fast.fast_writes += 1
-        return answer(client)  # type: ignore[arg-type]
+        return answer(client, reader, result)  # type: ignore[arg-type]
 
     fast.server._answer_write = counted  # type: ignore[method-assign]
     yield made[0], made[1]
@@ -174,7 +184,7 @@ import socket, struct
 from pymodbus.framer import FramerRTU
 from pymodbus.pdu import DecodePDU
 from pymodbus.pdu.register_message import WriteMultipleRegistersRequest
-from hilrig.drivers.joint_targets.frame import crc16
+from hilrig.drivers.joint_targets.frame import crc16, read_request
 from hilrig.drivers.joint_targets.wire import RegisterMap
 from hilrig.emulator.modbus_server import EmulatedModbusServer
 MAP = RegisterMap()
@@ -184,21 +194,22 @@ request = FramerRTU(DecodePDU(is_server=False)).buildFrame(
     WriteMultipleRegistersRequest(address=MAP.start, registers=values, dev_id=MAP.device_id)
 )
 applied = []
-server = EmulatedModbusServer(applied.append).start()
-ready = len(crc16.signatures)
+server = EmulatedModbusServer(lambda *write: applied.append(write)).start()
+ready = (len(read_request.signatures), len(crc16.signatures))
 with socket.create_connection(("127.0.0.1", server.port), timeout=10) as sock:
     sock.sendall(request)
     sock.recv(64)
 server.stop()
-print(ready, len(crc16.signatures), len(applied))
+print(*ready, len(read_request.signatures), len(crc16.signatures), len(applied))
 """
 
 
-def test_the_crc_kernel_is_ready_before_the_first_request() -> None:
-    """In a process of its own: the endpoint loads its compiled CRC, for the type requests
-    arrive in, when it is made; the first write over a real socket (applied) adds no
-    signature, so it does not stop the rig's slots while numba loads or compiles one."""
+def test_the_request_kernel_is_ready_before_the_first_request() -> None:
+    """In a process of its own: the endpoint loads its compiled request reader (and CRC), for
+    the type requests arrive in, when it is made; the first write over a real socket (applied)
+    adds no signature, so it does not stop the rig's slots while numba loads or compiles one."""
     out = subprocess.run(
         [sys.executable, "-c", WARM_CHILD], capture_output=True, text=True, check=True
     ).stdout.split()
-    assert out == ["1", "1", "1"]
+    read_before, crc_before, read_after, crc_after, applied = map(int, out)
+    assert (read_before, read_after, crc_after, applied) == (1, 1, crc_before, 1)

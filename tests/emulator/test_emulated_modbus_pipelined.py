@@ -19,7 +19,11 @@ def test_requests_sent_in_one_segment_are_each_applied_and_answered() -> None:
         request.fill(np.full(6, 0.1 * sequence), sequence, Mode.TRACK)
         frames += request.frame.tobytes()
     with (
-        EmulatedModbusServer(received.append) as server,
+        EmulatedModbusServer(
+            lambda q_rad, sequence, mode: received.append(
+                JointTargets(tuple(q_rad.tolist()), sequence, mode)
+            )
+        ) as server,
         socket.create_connection(("127.0.0.1", server.port), timeout=10) as client,
     ):
         client.sendall(frames)  # three requests before any reply

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from hilrig.drivers.joint_targets.wire import JointTargets, Mode
+from hilrig.drivers.joint_targets.wire import Mode
 from hilrig.drivers.robot_state.wire import RobotStatus
 from hilrig.robot.limits import JointLimits
 from hilrig.world.plant import JointServoPlant
@@ -20,7 +20,7 @@ def drive(plant: JointServoPlant, q: list[float], ticks: int, start_tick: int = 
     """Send q in TRACK every 1 ms tick and advance; returns the states."""
     states = []
     for n in range(start_tick, start_tick + ticks):
-        plant.set_targets(JointTargets(tuple(q), n + 1, Mode.TRACK), n * MS)
+        plant.set_targets(np.array(q), n + 1, Mode.TRACK, n * MS)
         plant.advance(n * MS)
         states.append(plant.state(n, n * MS, (0.0,) * 6))
     return states
@@ -63,7 +63,7 @@ def test_the_watchdog_holds_when_targets_stop() -> None:
 def test_a_stop_write_latches_until_cleared() -> None:
     plant = JointServoPlant(LIMITS)
     drive(plant, [0.5] * 6, 50)
-    plant.set_targets(JointTargets((3.0,) * 6, 51, Mode.STOP), 50 * MS)
+    plant.set_targets(np.full(6, 3.0), 51, Mode.STOP, 50 * MS)
     for n in range(50, 800):
         plant.advance(n * MS)
     stopped = plant.state(0, 0, (0.0,) * 6)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hilrig.drivers.joint_targets.wire import JointTargets, Mode
+from hilrig.drivers.joint_targets.wire import Mode
 from hilrig.errors import ParameterError
 from hilrig.robot import RobotModel
 from hilrig.world.plant import JointServoPlant, servo_limits
@@ -31,7 +31,7 @@ def test_track_is_the_emulated_plant_driven_by_the_same_targets() -> None:
     for k in range(len(t)):
         plant.advance(int(ns[k]))
         measured.append(plant.q_rad)
-        plant.set_targets(JointTargets(tuple(q[k]), k, Mode.TRACK), int(ns[k]))
+        plant.set_targets(q[k], k, Mode.TRACK, int(ns[k]))
     modelled = track(t, q, t, Q0, servo_limits(LIMITS), 60.0, 0.0005, 0.0)
     np.testing.assert_allclose(modelled, np.array(measured), atol=1e-12)
 
