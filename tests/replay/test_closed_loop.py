@@ -34,23 +34,42 @@ HAND = {"direction_in_base": "1,0,0", "stiffness_n_m": 800, "depth_m": 0.02, "pe
 SECONDS = 2.0 + 2 * (0.05 + 0.02) / 0.1 + 1.0 + 0.6
 
 
+#: Recordings whose loop fell back to stale samples on more ticks than this share, or held, are
+#: recorded again (at most ATTEMPTS times): the reproduction target (docs/replay.md, Validation)
+#: is for sessions the loop kept up with, and a machine loaded twice over (two test workers, or
+#: ``make test`` beside another) can stall a session's rig for tens of milliseconds: the loop
+#: then ran on samples the re-simulation cannot know were stale (seen: 146 fallback ticks of
+#: 4900 and a 5.6 % peak error).
+STALE_SHARE = 0.01
+ATTEMPTS = 4
+
+
 @pytest.fixture(scope="module")
 def recordings(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """The same volunteer recorded under the adaptive and the fixed law."""
     folder = tmp_path_factory.mktemp("closed")
     paths = {}
     for law in ("adaptive", "fixed"):
-        paths[law] = folder / f"{law}.mcap"
-        config = SessionConfig(
-            out=paths[law],
-            subject_id="V001",
-            scenario="hand-contact",
-            scenario_settings=dict(HAND),
-            duration_s=SECONDS,
-            trajectory="hold",
-            loop=LoopConfig(law=law),
-        )
-        record_session(config, stop=threading.Event())
+        for attempt in range(ATTEMPTS):
+            paths[law] = folder / f"{law}-{attempt}.mcap"
+            config = SessionConfig(
+                out=paths[law],
+                subject_id="V001",
+                scenario="hand-contact",
+                scenario_settings=dict(HAND),
+                duration_s=SECONDS,
+                trajectory="hold",
+                loop=LoopConfig(law=law),
+            )
+            summary = record_session(config, stop=threading.Event()).summary
+            if summary.hold_ticks == 0 and summary.fallback_ticks <= STALE_SHARE * summary.ticks:
+                break
+        else:
+            pytest.fail(
+                f"{law}: no recording the loop kept up with in {ATTEMPTS} attempts (last: "
+                f"{summary.fallback_ticks} fallback and {summary.hold_ticks} hold ticks of "
+                f"{summary.ticks})"
+            )
     return paths
 
 
