@@ -4,6 +4,8 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 OUT ?= build
+# pytest workers for make test (pytest-xdist); TEST_WORKERS=0 runs the suite in one process
+TEST_WORKERS ?= 2
 # The browser tests drive Debian's chromium (tests/study); installed once, as root or with sudo.
 CHROMIUM := /usr/bin/chromium
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
@@ -20,7 +22,7 @@ demo: $(STAMP)  ## the main job: the paper table, then its collisions recorded o
 	$(BIN)/hilrig demo --out $(OUT)/demo
 
 test: lint typecheck $(CHROMIUM)  ## lint, type-check and run every test
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(TEST_WORKERS)
 
 $(CHROMIUM):
 	$(SUDO) apt-get update -qq
