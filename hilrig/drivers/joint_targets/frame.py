@@ -226,4 +226,4 @@ def read_request(
 def _word(frame: bytearray, at: int, high: int, low: int) -> int:
     """The 16-bit word of bytes ``at + high`` (its high byte) and ``at + low``, as an int64 (the
     bytes are uint8: numba would widen their mix with int64 to float64)."""
-    return (np.int64(frame[at + high]) << 8) | np.int64(frame[at + low])
+    return int((np.int64(frame[at + high]) << 8) | np.int64(frame[at + low]))
