@@ -76,9 +76,9 @@ class RegisterMap:
 
     def decode(self, registers: list[int]) -> JointTargets:
         """The inverse of ``encode`` (raises ProtocolError on an unknown mode or a target that
-        is not finite: no robot takes those). An emulated robot decodes a write a millisecond:
-        precompiled structs, one finiteness check of the sum (float32 values cannot overflow
-        it), the mode by table."""
+        is not finite: no robot takes those): precompiled structs, one finiteness check of the
+        sum (float32 values cannot overflow it), the mode by table. The emulated robot's
+        whole-map writes take ``frame.RequestReader`` instead, held to this in the tests."""
         start = self.start
         at = self.targets[0] - start
         q = _FLOATS.unpack(_WORDS.pack(*registers[at : at + 2 * JOINTS]))
