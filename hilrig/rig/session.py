@@ -304,20 +304,22 @@ def _read_to_the_end(devices: DeviceIO, rig: RigProcess | None) -> None:
     """Stop the sensor's stream and record the frames still on their way; with the emulated rig,
     stop it and record the joint states it sent up to its end (its socket's EOF)."""
     devices.sensor.stop_streaming()
-    _read_until_quiet(devices)
+    _read_until_quiet(devices, sensor_only=True)
     if rig is not None:
         rig.stop()
-        _read_until_quiet(devices)
+        _read_until_quiet(devices, sensor_only=False)
 
 
-def _read_until_quiet(devices: DeviceIO) -> None:
-    """Read (and record) until no data came for QUIET_S, or MAX_DRAIN_S passed."""
+def _read_until_quiet(devices: DeviceIO, *, sensor_only: bool) -> None:
+    """Read (and record) until no data came for QUIET_S, or MAX_DRAIN_S passed. With
+    ``sensor_only`` only the wrist sensor's silence counts: the robot streams on (waiting for it
+    to fall silent took MAX_DRAIN_S at every session's end)."""
     quiet_ns = round(QUIET_S * 1e9)
-    last = [devices.samples_read, time.monotonic_ns()]  # samples read, when that count changed
+    last = [devices.samples_read, time.monotonic_ns()]  # samples read, when new data came last
 
-    def quiet(_: list[FtSample]) -> bool:
+    def quiet(wrist: list[FtSample]) -> bool:
         now = time.monotonic_ns()
-        if devices.samples_read != last[0]:
+        if wrist or (not sensor_only and devices.samples_read != last[0]):
             last[:] = [devices.samples_read, now]
         return now - last[1] >= quiet_ns
 
