@@ -110,6 +110,7 @@ def record(session: DemoSession, out: Path) -> SessionResult:
     import signal
     import threading
 
+    from hilrig.cli.errors import print_waiting
     from hilrig.rig import LoopConfig, SessionConfig, record_session
 
     config = SessionConfig(
@@ -124,7 +125,7 @@ def record(session: DemoSession, out: Path) -> SessionResult:
     stop = threading.Event()
     before = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        result = record_session(config, stop=stop)
+        result = record_session(config, stop=stop, on_wait=print_waiting)
     finally:
         for signum, handler in before.items():
             signal.signal(signum, handler)

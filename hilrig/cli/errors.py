@@ -96,6 +96,11 @@ def print_bug(err: BaseException) -> None:
     )
 
 
+def print_waiting(text: str) -> None:
+    """``waiting: <text>`` on stderr (a session waiting for the machine's other session)."""
+    print_line("waiting", "yellow", text)
+
+
 def print_interrupted() -> None:
     print_line("interrupted", "bold red", "stopped by Ctrl-C")
 

@@ -103,6 +103,7 @@ def record(
     import threading
     import time
 
+    from hilrig.cli.errors import print_waiting
     from hilrig.cli.session_output import (
         SessionWatch,
         print_result,
@@ -140,7 +141,12 @@ def record(
         signal.signal(signum, lambda *_: stop.set())
     with SessionWatch() as watch:
         result = record_session(
-            session, stop=stop, live=live, on_start=watch.on_start, on_event=watch.on_event
+            session,
+            stop=stop,
+            live=live,
+            on_start=watch.on_start,
+            on_event=watch.on_event,
+            on_wait=print_waiting,
         )
     print_result(summary_console(), result)
     print_verdict(summary_console(), result)

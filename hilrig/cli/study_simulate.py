@@ -82,6 +82,7 @@ def simulate(
     import signal
     import threading
 
+    from hilrig.cli.errors import print_waiting
     from hilrig.cli.record import key_values
     from hilrig.cli.session_output import summary_console
     from hilrig.study.simulate import (
@@ -110,7 +111,14 @@ def simulate(
     before = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         with SessionBar(console, len(plan.sessions)) as bar:
-            run = simulate_study(plan, out, on_session=bar.step, on_begin=bar.begin, stop=stop)
+            run = simulate_study(
+                plan,
+                out,
+                on_session=bar.step,
+                on_begin=bar.begin,
+                stop=stop,
+                on_wait=print_waiting,
+            )
     finally:
         for signum, handler in before.items():
             signal.signal(signum, handler)

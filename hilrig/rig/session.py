@@ -2,6 +2,8 @@
 
 Start-up is ordered so that nothing is lost and nothing costs the first ticks:
 
+0. the machine's session lock is taken (:mod:`.machine_lock`: one session at a time on a
+   machine; a second one says so and waits);
 1. the compiled tick is loaded and run once (numba's first-call costs), before any device talks;
 2. the recorder process and (emulated) rig process are spawned side by side, and the live view's
    viewer-feed process if asked;
@@ -45,6 +47,7 @@ from hilrig.rig.kinds import RigKind
 from hilrig.rig.live_port import LiveReportLike, LiveViewPort
 from hilrig.rig.loop import ControlLoop
 from hilrig.rig.loop_figures import LoopSummary
+from hilrig.rig.machine_lock import one_session_at_a_time
 from hilrig.rig.recorder_feed import RecorderFeed
 from hilrig.rig.recorder_process import RecorderProcess
 from hilrig.rig.records import AXIS_NAMES
@@ -90,6 +93,7 @@ def record_session(
     on_event: Callable[[EventRecord], None] | None = None,
     rig_ready: Callable[[RigProcess], None] | None = None,
     recorder_ready: Callable[[RecorderProcess], None] | None = None,
+    on_wait: Callable[[str], None] | None = None,
 ) -> SessionResult:
     """Run and record one session; raises HilrigError (one line) when it cannot start.
 
@@ -102,7 +106,8 @@ def record_session(
     ``live`` is the live view (built by the caller, e.g. ``hilrig.viz.live.LiveView``);
     ``on_start`` gets the loop before it ticks (e.g. for a status line), ``on_event`` every
     event (called on the tick: it must only queue), ``rig_ready`` and ``recorder_ready`` the
-    emulated rig and recorder processes (fault injection in tests).
+    emulated rig and recorder processes (fault injection in tests), ``on_wait`` a line saying
+    that another session holds the machine (this one then waits for it, or for ``stop``).
     """
     config.check()
     stop = stop or threading.Event()
@@ -115,9 +120,10 @@ def record_session(
 
     session_id = config.session_id_or_now()
     model = RobotModel()
-    warm_up()  # numba's first-call costs, before any device talks
-    freeze_heap()  # and the collector's big pass: the loop's own (realtime_python) is then short
     with ExitStack() as stack:
+        stack.enter_context(one_session_at_a_time(stop, on_wait))
+        warm_up()  # numba's first-call costs, before any device talks
+        freeze_heap()  # and the collector's big pass: the loop's own (realtime_python) is short
         made = _make_folders(config.out)
         stack.callback(_remove_empty, made)  # at the end, unless the file is there
         if live is not None:  # first: its start-up must not delay the rig's scenario

@@ -367,10 +367,12 @@ def simulate_study(
     on_session: Callable[[SessionStep], None] | None = None,
     on_begin: Callable[[int, PlannedSession], None] | None = None,
     stop: threading.Event | None = None,
+    on_wait: Callable[[str], None] | None = None,
 ) -> StudyRun:
     """Record ``plan`` into ``out`` (every session checked, the design written, first); each
-    step goes to ``on_session``, each session about to start to ``on_begin``. ``stop`` ends the
-    session being recorded (its file is kept) and the study. HilrigError (one line) when a
+    step goes to ``on_session``, each session about to start to ``on_begin``, a session waiting
+    for the machine's other session to ``on_wait``. ``stop`` ends the session being recorded
+    (its file is kept) and the study. HilrigError (one line) when a
     session cannot start or ends early."""
     stop = stop or threading.Event()
     steps: list[SessionStep] = []
@@ -391,7 +393,7 @@ def simulate_study(
             break
         if on_begin is not None:
             on_begin(index, planned)
-        result = record_session(session_config(plan, planned, out), stop=stop)
+        result = record_session(session_config(plan, planned, out), stop=stop, on_wait=on_wait)
         steps.append(SessionStep(index, planned, "recorded", result))
         report(steps[-1])
         problem = "; ".join(filter(None, (result.ended_by, result.recorder_error)))
