@@ -84,7 +84,7 @@ def realtime_python() -> Iterator[None]:
     tighten_timer_slack()
     try:
         with cpu_wakeup_latency():  # first: its spinners must not inherit SCHED_FIFO
-            policy = _raise_priority()
+            policy = raise_priority()
             try:
                 yield
             finally:
@@ -160,18 +160,31 @@ def idle_spinners() -> Iterator[list[int]]:
             spinner.wait()
 
 
-def _raise_priority() -> tuple[int, os.sched_param] | None:
-    """Run this thread under SCHED_FIFO at REALTIME_PRIORITY where the OS allows it (root or
-    CAP_SYS_NICE), so other processes on a busy machine cannot preempt a tick for a whole
-    scheduler slice. Returns the previous (policy, param) to restore, or None if not allowed."""
+def raise_priority(priority: int = REALTIME_PRIORITY) -> tuple[int, os.sched_param] | None:
+    """Run this thread under SCHED_FIFO at ``priority`` where the OS allows it (root or
+    CAP_SYS_NICE), so other processes on a busy machine cannot preempt it for a whole scheduler
+    slice. Returns the previous (policy, param) to restore, or None if not allowed."""
     if not hasattr(os, "sched_setscheduler"):
         return None
     previous = (os.sched_getscheduler(0), os.sched_getparam(0))
     try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(REALTIME_PRIORITY))
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except OSError:  # not permitted: run at normal priority
         return None
     return previous
+
+
+def renice_process(pid: int, niceness: int) -> bool:
+    """Set every thread of process ``pid`` to ``niceness`` (Linux applies a nice value to one
+    thread, and threads started before a change keep theirs); False if the OS refused (lowering
+    a niceness needs root or CAP_SYS_NICE) or the process is gone."""
+    try:
+        tasks = [int(task.name) for task in Path(f"/proc/{pid}/task").iterdir()]
+        for tid in tasks:
+            os.setpriority(os.PRIO_PROCESS, tid, niceness)
+    except OSError:
+        return False
+    return True
 
 
 def bound_kernel(kernel: Any, *arrays: Any, last: tuple[Any, ...]) -> Callable[..., Any]:

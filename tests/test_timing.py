@@ -17,7 +17,13 @@ from pathlib import Path
 
 import pytest
 
-from hilrig.timing import CPU_LATENCY_DEVICE, cpu_wakeup_latency, idle_spinners, realtime_python
+from hilrig.timing import (
+    CPU_LATENCY_DEVICE,
+    cpu_wakeup_latency,
+    idle_spinners,
+    realtime_python,
+    renice_process,
+)
 
 
 def current_limit_us() -> int:
@@ -173,3 +179,34 @@ def children() -> set[str]:
     """This process's child processes now."""
     me = os.getpid()
     return set(Path(f"/proc/{me}/task/{me}/children").read_text().split())
+
+
+NICED_WITH_A_THREAD = """
+import os, sys, threading
+os.setpriority(os.PRIO_PROCESS, 0, 10)
+thread = threading.Thread(target=sys.stdin.read)  # started niced: it keeps 10 of its own
+thread.start()
+print(thread.native_id, flush=True)
+thread.join()
+"""
+
+
+def test_renice_process_sets_every_thread_of_the_process() -> None:
+    child = subprocess.Popen(
+        [sys.executable, "-c", NICED_WITH_A_THREAD],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert child.stdout is not None
+        tids = [child.pid, int(child.stdout.readline())]
+        assert [os.getpriority(os.PRIO_PROCESS, tid) for tid in tids] == [10, 10]
+        permitted = os.geteuid() == 0  # lowering a niceness needs root or CAP_SYS_NICE
+        assert renice_process(child.pid, 0) is permitted
+        expected = 0 if permitted else 10
+        assert [os.getpriority(os.PRIO_PROCESS, tid) for tid in tids] == [expected, expected]
+    finally:
+        child.kill()
+        child.wait()
+    assert renice_process(child.pid, 0) is False  # gone

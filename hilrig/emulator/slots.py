@@ -26,7 +26,7 @@ import time
 from collections.abc import Callable
 from typing import Self
 
-from hilrig.timing import LatencyHistogram, tighten_timer_slack
+from hilrig.timing import LatencyHistogram, raise_priority, tighten_timer_slack
 
 RIG_PRIORITY = 40
 MAX_BEHIND = 5
@@ -73,7 +73,7 @@ class SlotLoop:
 
     def run(self) -> None:
         """The loop; returns after ``stop()``."""
-        previous = _raise_priority()
+        previous = raise_priority(RIG_PRIORITY)
         tighten_timer_slack()
         period = self.period_ns
         deadline = self.t0_ns
@@ -119,18 +119,6 @@ def accept_client(listener: socket.socket) -> socket.socket | None:
     sock.setblocking(False)
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
     return sock
-
-
-def _raise_priority() -> tuple[int, os.sched_param] | None:
-    """SCHED_FIFO at RIG_PRIORITY for this thread; the previous policy, or None if refused."""
-    if not hasattr(os, "sched_setscheduler"):
-        return None
-    previous = (os.sched_getscheduler(0), os.sched_getparam(0))
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(RIG_PRIORITY))
-    except OSError:
-        return None
-    return previous
 
 
 class Device:

@@ -4,6 +4,7 @@ with a live view it also forwards a decimated copy (:class:`~.view_feed.ViewForw
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import signal
@@ -32,6 +33,11 @@ from hilrig.rig.row_messages import EVENTS_TOPIC, ft_samples, joint_samples, tic
 from hilrig.rig.view_feed import VIEW_BATCH_S, VIEW_HANDOFF_S, ViewBatch, ViewForwarder
 from hilrig.timing import freeze_heap
 
+#: Ahead of a busy machine's other work (where permitted: root or CAP_SYS_NICE), behind the loop's
+#: and the rig's SCHED_FIFO threads: a recorder starved by other processes holds rows in the
+#: rings and its unflushed chunk, which a crash would lose. Not SCHED_FIFO: its chunk writes must
+#: not keep the kernel's workers (the tty's, which hand the loop its F/T frames) waiting.
+RECORDER_NICENESS = -10
 IDLE_FLUSH_S = 0.25  # hand a quiet writer's open chunk to the OS after this long without data
 STOP = None  # the last item RecorderProcess.stop() puts on the event queue (after the outcome)
 BEGIN = "begin"  # RecorderProcess.begin() sends (BEGIN, session, calibration)
@@ -59,6 +65,8 @@ def record(conn: Connection, job: RecorderJob) -> None:
     """The recorder process: attach the rings, wait for ``("begin", session, calibration)``
     (anything else, or the parent's end, ends it: ``done`` with nothing written), open the file,
     report ready, write until told to stop, report done."""
+    with contextlib.suppress(OSError):  # not permitted: normal priority
+        os.setpriority(os.PRIO_PROCESS, 0, RECORDER_NICENESS)
     rings: list[Ring] = []
     try:
         for spec in job.rings:

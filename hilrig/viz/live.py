@@ -28,6 +28,7 @@ from hilrig.errors import ViewError
 from hilrig.outputs import check_new_file, temporary_beside
 from hilrig.rig import VIEW_RATE_HZ, ChildProcess, LiveViewPort, ViewBatch, ViewCounts
 from hilrig.rig.child import CONTEXT
+from hilrig.timing import renice_process
 from hilrig.viz.live_feed import LiveJob, serve, unwritten
 from hilrig.viz.live_logger import LiveLogger, about_live, event_line, open_live
 from hilrig.viz.sinks import Sink, SinkKind, check_rrd_path, grpc_address
@@ -138,6 +139,8 @@ class LiveView(LiveViewPort):
         if self._child.started and not problem:
             with contextlib.suppress(Exception):  # the recorder's marker may be lost
                 self._queue.put_nowait(None)
+            if self._child.pid is not None:  # the loop is done: the last flush need not yield
+                renice_process(self._child.pid, 0)
             if not self._child.stop(timeout_s):
                 problem = f"the live view did not finish within {timeout_s:g} s; stopped it"
             done = self._done()

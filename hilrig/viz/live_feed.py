@@ -1,9 +1,10 @@
 """The viewer-feed process of the live view: spawned by :class:`~hilrig.viz.live.LiveView`,
-niced, it takes the recorder's batches off the bounded queue and logs them with
-:class:`~hilrig.viz.live_logger.LiveLogger` until the end marker or its parent's death. A
-viewer that cannot be reached, or stops taking data, is said once; the feed then ends and the
-session goes on recording everything. An ``.rrd`` file is written under a temporary name beside
-it and moved into place once whole (never over a file), or removed after a problem.
+niced while the session runs (:meth:`~hilrig.viz.live.LiveView.stop` gives its last flush
+normal priority where permitted), it takes the recorder's batches off the bounded queue and
+logs them with :class:`~hilrig.viz.live_logger.LiveLogger` until the end marker or its parent's
+death. A viewer that cannot be reached, or stops taking data, is said once; the feed then ends
+and the session goes on recording everything. An ``.rrd`` file is written under a temporary name
+beside it and moved into place once whole (never over a file), or removed after a problem.
 """
 
 from __future__ import annotations

@@ -15,6 +15,7 @@ from test_recorder import ROW_TOPICS, check_rows, push_rows, session
 from hilrig.errors import RecordingError
 from hilrig.recording import load
 from hilrig.rig import RecorderFeed, RecorderProcess
+from hilrig.rig.recorder_child import RECORDER_NICENESS
 
 
 def test_rows_committed_before_begin_are_all_written(tmp_path: Path) -> None:
@@ -34,6 +35,18 @@ def test_rows_committed_before_begin_are_all_written(tmp_path: Path) -> None:
     frames = load(path)
     assert {t: len(frames[t]) for t in ROW_TOPICS} == dict.fromkeys(ROW_TOPICS, n)
     check_rows(frames, n)
+
+
+def test_the_recorder_runs_ahead_of_other_work_where_permitted(tmp_path: Path) -> None:
+    with RecorderFeed(rows=64) as feed:
+        recorder = RecorderProcess(tmp_path / "nice.mcap", feed=feed)
+        recorder.spawn()
+        recorder.begin(session(), {"bias_in_sensor": [0.0] * 6})
+        assert recorder.ready(60.0) and recorder.pid is not None
+        niceness = os.getpriority(os.PRIO_PROCESS, recorder.pid)
+        assert recorder.stop() == (0, 0)
+    permitted = os.geteuid() == 0  # or CAP_SYS_NICE, which a test run as a user does not have
+    assert niceness == (RECORDER_NICENESS if permitted else os.getpriority(os.PRIO_PROCESS, 0))
 
 
 def test_a_recorder_stopped_before_begin_writes_no_file(tmp_path: Path) -> None:
