@@ -174,16 +174,13 @@ def raise_priority(priority: int = REALTIME_PRIORITY) -> tuple[int, os.sched_par
     return previous
 
 
-def renice_process(pid: int, niceness: int) -> bool:
-    """Set every thread of process ``pid`` to ``niceness`` (Linux applies a nice value to one
-    thread, and threads started before a change keep theirs); False if the OS refused (lowering
-    a niceness needs root or CAP_SYS_NICE) or the process is gone."""
-    try:
-        tasks = [int(task.name) for task in Path(f"/proc/{pid}/task").iterdir()]
-        for tid in tasks:
-            os.setpriority(os.PRIO_PROCESS, tid, niceness)
-    except OSError:
+def realtime_permitted() -> bool:
+    """Whether this process may run threads under SCHED_FIFO (root, CAP_SYS_NICE or an
+    RLIMIT_RTPRIO): tried on this thread at priority 1 and undone."""
+    previous = raise_priority(1)
+    if previous is None:
         return False
+    os.sched_setscheduler(0, *previous)
     return True
 
 

@@ -37,8 +37,7 @@ from hilrig.world.body import body_region as check_body_region
 from hilrig.world.scenarios import Scenario, scenario, settings_fields, settings_of
 
 RECOVERY_S = 2.0  # s recorded after the collision's end by default
-#: A whole session's ticks (one LOOP_TOPIC message each) span its duration, less this (s).
-SPAN_TOLERANCE_S = 0.05
+SPAN_TOLERANCE_S = 0.05  # s: a whole session's ticks (LOOP_TOPIC) span its duration less this
 DESIGN_FILE = "simulation.toml"
 TRAJECTORY = "hold"  # the robot holds its pose, so every volunteer meets the tool
 EXAMPLE = "e.g. stiffness_n_m=200..1000"
@@ -369,11 +368,10 @@ def simulate_study(
     stop: threading.Event | None = None,
     on_wait: Callable[[str], None] | None = None,
 ) -> StudyRun:
-    """Record ``plan`` into ``out`` (every session checked, the design written, first); each
-    step goes to ``on_session``, each session about to start to ``on_begin``, a session waiting
-    for the machine's other session to ``on_wait``. ``stop`` ends the session being recorded
-    (its file is kept) and the study. HilrigError (one line) when a
-    session cannot start or ends early."""
+    """Record ``plan`` into ``out`` (every session checked, the design written, first); steps go
+    to ``on_session``, sessions about to start to ``on_begin``, one waiting for the machine's
+    other session to ``on_wait``. ``stop`` ends the session being recorded (its file is kept)
+    and the study. HilrigError (one line) when a session cannot start or ends early."""
     stop = stop or threading.Event()
     steps: list[SessionStep] = []
     todo: list[tuple[int, PlannedSession]] = []

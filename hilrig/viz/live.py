@@ -3,7 +3,7 @@
 The loop does nothing for it. The recorder process, which reads every row anyway, forwards a
 copy decimated to 50 Hz (:class:`~hilrig.rig.view_feed.ViewForwarder`) in batches over a
 bounded queue, never waiting: a full queue drops the batch. The viewer-feed process started by
-:class:`LiveView` (:mod:`.live_feed`, niced, so the loop's processes come first) turns the
+:class:`LiveView` (:mod:`.live_feed`, niced where the loop cannot run SCHED_FIFO) turns the
 batches into the entity tree of a file's view (:mod:`.live_logger` on :mod:`.paths`, the
 recorded controller as run ``recorded``) and streams them to the desktop viewer, a viewer or
 server at a URL, or an ``.rrd`` file. A viewer that cannot be reached, or stops taking data, is
@@ -28,7 +28,6 @@ from hilrig.errors import ViewError
 from hilrig.outputs import check_new_file, temporary_beside
 from hilrig.rig import VIEW_RATE_HZ, ChildProcess, LiveViewPort, ViewBatch, ViewCounts
 from hilrig.rig.child import CONTEXT
-from hilrig.timing import renice_process
 from hilrig.viz.live_feed import LiveJob, serve, unwritten
 from hilrig.viz.live_logger import LiveLogger, about_live, event_line, open_live
 from hilrig.viz.sinks import Sink, SinkKind, check_rrd_path, grpc_address
@@ -139,8 +138,6 @@ class LiveView(LiveViewPort):
         if self._child.started and not problem:
             with contextlib.suppress(Exception):  # the recorder's marker may be lost
                 self._queue.put_nowait(None)
-            if self._child.pid is not None:  # the loop is done: the last flush need not yield
-                renice_process(self._child.pid, 0)
             if not self._child.stop(timeout_s):
                 problem = f"the live view did not finish within {timeout_s:g} s; stopped it"
             done = self._done()

@@ -1,10 +1,10 @@
-"""The viewer-feed process of the live view: spawned by :class:`~hilrig.viz.live.LiveView`,
-niced while the session runs (:meth:`~hilrig.viz.live.LiveView.stop` gives its last flush
-normal priority where permitted), it takes the recorder's batches off the bounded queue and
-logs them with :class:`~hilrig.viz.live_logger.LiveLogger` until the end marker or its parent's
-death. A viewer that cannot be reached, or stops taking data, is said once; the feed then ends
-and the session goes on recording everything. An ``.rrd`` file is written under a temporary name
-beside it and moved into place once whole (never over a file), or removed after a problem.
+"""The viewer-feed process of the live view: spawned by :class:`~hilrig.viz.live.LiveView`
+(niced where the loop cannot run under SCHED_FIFO), it takes the recorder's batches off the
+bounded queue and logs them with :class:`~hilrig.viz.live_logger.LiveLogger` until the end
+marker or its parent's death. A viewer that cannot be reached, or stops taking data, is said
+once; the feed then ends and the session goes on recording everything. An ``.rrd`` file is
+written under a temporary name beside it and moved into place once whole (never over a file),
+or removed after a problem.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from hilrig.errors import OutputError, ViewError
 from hilrig.outputs import new_files
 from hilrig.rig import ViewBatch
 from hilrig.rig.child import report
+from hilrig.timing import realtime_permitted
 from hilrig.viz.live_logger import LiveLogger, open_live
 from hilrig.viz.sinks import Sink, SinkKind, viewer_problem
 
@@ -31,6 +32,9 @@ POLL_S = 0.2  # the feed checks on its parent this often while no batch comes
 CHECK_S = 1.0  # the stream's health (a flush) is checked this often
 FLUSH_TIMEOUT_S = 5.0
 CONNECT_TIMEOUT_S = 2.0
+#: Where the loop cannot run under SCHED_FIFO (no root or CAP_SYS_NICE), the feed yields to it;
+#: where it can, the loop preempts the feed anyway, and a niced feed starved by a busy machine
+#: (``make test`` beside another) fell behind its whole session and never finished.
 NICENESS = 10
 
 
@@ -53,8 +57,9 @@ class LiveJob:
 def serve(conn: Connection, job: LiveJob) -> None:
     """The viewer-feed process: open the stream, log every batch until the end marker or the
     parent's death, finish the stream and report. A problem is said once and ends the feed."""
-    with contextlib.suppress(OSError):
-        os.nice(NICENESS)
+    if not realtime_permitted():
+        with contextlib.suppress(OSError):
+            os.nice(NICENESS)
     try:
         _reachable(job.sink)
         live = open_live(

@@ -28,7 +28,8 @@ def session(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     args = [str(HILRIG), "record", "--subject", "S003", "--scenario", "hand-contact"]
     args += ["--scenario-set", "period_s=none", "--trajectory", "hold"]
     args += ["--duration", str(SECONDS), "--out", str(out)]
-    done = subprocess.run(args, capture_output=True, text=True, timeout=120)
+    # the timeout includes the wait for the machine's other sessions (make test beside another)
+    done = subprocess.run(args, capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr
     return out, done.stdout
 

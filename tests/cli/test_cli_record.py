@@ -77,7 +77,7 @@ def test_view_save_writes_the_live_view_beside_a_complete_recording(tmp_path: Pa
         [str(HILRIG), *command, "--view-save", str(live)],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=900,  # with the wait for the machine's other sessions (make test beside another)
     )
     assert result.returncode == 0, result.stderr
     assert re.search(r"live view: (\d+) batches shown, \1 sent, 0 dropped$", result.stdout, re.M)
@@ -117,7 +117,7 @@ def record(tmp_path: Path, *args: str, **env: str) -> subprocess.CompletedProces
         [str(HILRIG), "record", "--subject", "S003", *args],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=900,  # with the wait for the machine's other sessions (make test beside another)
         cwd=tmp_path,
         env={**os.environ, **env},
     )

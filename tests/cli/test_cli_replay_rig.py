@@ -30,7 +30,7 @@ def test_a_recorded_collision_replayed_into_the_emulated_rig(tmp_path: Path) -> 
         ],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=900,  # with the wait for the machine's other sessions (make test beside another)
     )
     assert result.returncode == 0, result.stderr
     assert f"recorded {out}" in result.stdout

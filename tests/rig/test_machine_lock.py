@@ -12,7 +12,7 @@ from hilrig.recording import inspect
 from hilrig.rig import SessionConfig, record_session
 from hilrig.rig.machine_lock import WAITING, one_session_at_a_time
 
-WAIT_S = 120  # bounds for the waits below (a loaded machine), never reached when all is well
+WAIT_S = 900  # bounds for the waits below (a loaded machine, other sessions), never reached
 HOLD = """
 import sys, threading
 from pathlib import Path

@@ -4,6 +4,7 @@ complete; and a live view started and stopped without a recorder."""
 
 from __future__ import annotations
 
+import os
 import socket
 import threading
 from collections.abc import Iterator
@@ -18,8 +19,10 @@ from servers import impostor
 from hilrig.recording import inspect, load
 from hilrig.rig import SessionConfig, SessionResult, record_session
 from hilrig.robot.model import RobotModel
+from hilrig.timing import realtime_permitted
 from hilrig.viz import paths
 from hilrig.viz.live import LiveView
+from hilrig.viz.live_feed import NICENESS
 from hilrig.viz.save_server import rerun_save_server
 from hilrig.viz.sinks import Sink, SinkKind, grpc_url
 
@@ -135,7 +138,12 @@ def test_live_view_start_and_stop_without_a_recorder_report_nothing_sent(
         source="idle.mcap",
     )
     live.start()
+    pid = live._child.pid
+    assert pid is not None
+    # niced only where the loop cannot run SCHED_FIFO: a niced feed starved on a busy machine
+    niceness = os.getpriority(os.PRIO_PROCESS, pid)
     report = live.stop(None)
+    assert niceness == (0 if realtime_permitted() else NICENESS)
     assert (report.sent, report.dropped, report.shown) == (0, 0, 0)
     assert report.problem == "the recorder did not report on the view"
     assert "idle" in read(tmp_path / "idle.rrd").static(paths.ABOUT, "TextDocument:text")[0]
