@@ -4,6 +4,7 @@ mistake), resuming without overwriting, and one tiny study recorded on the emula
 from __future__ import annotations
 
 import threading
+import time
 import tomllib
 from collections import Counter
 from dataclasses import replace
@@ -17,6 +18,7 @@ from hilrig.recording import inspect
 from hilrig.study.catalogue import index, sessions
 from hilrig.study.simulate import (
     EXAMPLE,
+    PlannedSession,
     SettingRange,
     StudyDesign,
     existing,
@@ -315,10 +317,20 @@ def test_a_tiny_study_is_recorded_on_the_emulated_rig_and_resumed(
     assert {p: p.stat().st_mtime_ns for p in stamps} == stamps
     shown = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
     assert shown == ["S001", "S002", "simulation.toml"]
-    # a second repetition, stopped as its first session starts: kept, and not taken as done
+    # a second repetition, stopped as its first session's file is open: kept, not taken as done
+    # (stopped before it, a session waiting for another worker's session would give up instead)
     more = plan_study(replace(plan.design, repeats=2))
     stop = threading.Event()
-    done = simulate_study(more, out, on_begin=lambda index, session: stop.set(), stop=stop)
+
+    def stop_once_open(index: int, session: PlannedSession) -> None:
+        def watch() -> None:
+            while not (out / session.file).exists():
+                time.sleep(0.005)
+            stop.set()
+
+        threading.Thread(target=watch, daemon=True).start()
+
+    done = simulate_study(more, out, on_begin=stop_once_open, stop=stop)
     assert [s.status for s in done.steps] == ["done", "done", "recorded", "done", "done"]
     assert done.design_file == out / "simulation-2.toml"
     cut = done.steps[2]
