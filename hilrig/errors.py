@@ -9,6 +9,11 @@ class HilrigError(Exception):
     """Base of every error hilrig raises on purpose; its message is one line: what and where."""
 
 
+class StoppedWaitingError(HilrigError):
+    """A session stopped (Ctrl-C, SIGTERM) while it waited for the machine's other session:
+    nothing was recorded. The command line reports it as an interrupt (exit 130)."""
+
+
 class ControlError(HilrigError):
     """A controller cannot run as asked."""
 

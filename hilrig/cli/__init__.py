@@ -41,7 +41,7 @@ from hilrig.cli.errors import (
     print_usage_error,
     show_warning,
 )
-from hilrig.errors import HilrigError
+from hilrig.errors import HilrigError, StoppedWaitingError
 
 __all__ = ["app", "main", "run"]
 
@@ -65,6 +65,9 @@ def run(args: Sequence[str]) -> int:
 def _run(args: Sequence[str]) -> int:
     try:
         status = get_command(app).main(list(args), prog_name="hilrig", standalone_mode=False)
+    except StoppedWaitingError as err:  # Ctrl-C (or SIGTERM) before the session began
+        print_interrupted(str(err))
+        return INTERRUPT_EXIT
     except HilrigError as err:
         print_error(err)
         return ERROR_EXIT

@@ -3,7 +3,8 @@ never read as markup, with an exit status that says what kind it was.
 
 - an expected failure (HilrigError, a mistake in the command line): ``error: ...``, exit 2;
 - anything else is a bug: ``error: unexpected <type>: <message>`` asking for a report, exit 3;
-- Ctrl-C outside a session: ``interrupted``, exit 130;
+- Ctrl-C outside a session, or while a session waits for the machine's other session:
+  ``interrupted: ...``, exit 130;
 - a warning (e.g. a RecordingWarning about a damaged file): ``warning: ...``.
 
 ``hilrig --debug COMMAND`` prints the full traceback before the line (:data:`SETTINGS`).
@@ -101,8 +102,9 @@ def print_waiting(text: str) -> None:
     print_line("waiting", "yellow", text)
 
 
-def print_interrupted() -> None:
-    print_line("interrupted", "bold red", "stopped by Ctrl-C")
+def print_interrupted(text: str = "stopped by Ctrl-C") -> None:
+    """``interrupted: <text>`` on stderr."""
+    print_line("interrupted", "bold red", text)
 
 
 def show_warning(

@@ -18,11 +18,12 @@ import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from hilrig.errors import HilrigError
+from hilrig.errors import HilrigError, StoppedWaitingError
 
 LOCK_PATH = Path(tempfile.gettempdir()) / "hilrig-session.lock"
 POLL_S = 0.1  # how often a waiting session looks again (and at its stop)
 WAITING = "another hilrig session is running on this machine; this one starts when it ends"
+STOPPED = "stopped while waiting for the other session: nothing recorded"
 
 
 @contextlib.contextmanager
@@ -33,8 +34,8 @@ def one_session_at_a_time(
     path: Path = LOCK_PATH,
 ) -> Iterator[None]:
     """Hold the machine's session lock for the ``with`` block. While another session holds it,
-    ``on_wait`` gets WAITING once and this waits; raises HilrigError (one line) if ``stop`` is
-    set meanwhile or the lock file cannot be opened."""
+    ``on_wait`` gets WAITING once and this waits; raises StoppedWaitingError if ``stop`` is set
+    meanwhile, HilrigError (one line) if the lock file cannot be opened."""
     fd = _open(path)
     try:
         waited = False
@@ -43,7 +44,7 @@ def one_session_at_a_time(
                 on_wait(WAITING)
             waited = True
             if stop.wait(POLL_S):
-                raise HilrigError("stopped while waiting for the other session: nothing recorded")
+                raise StoppedWaitingError(STOPPED)
         yield
     finally:
         os.close(fd)  # releases the lock

@@ -371,7 +371,7 @@ def simulate_study(
     """Record ``plan`` into ``out`` (every session checked, the design written, first); steps go
     to ``on_session``, sessions about to start to ``on_begin``, one waiting for the machine's
     other session to ``on_wait``. ``stop`` ends the session being recorded (its file is kept)
-    and the study. HilrigError (one line) when a session cannot start or ends early."""
+    and the study (StoppedWaitingError if it still waits). HilrigError when a session fails."""
     stop = stop or threading.Event()
     steps: list[SessionStep] = []
     todo: list[tuple[int, PlannedSession]] = []

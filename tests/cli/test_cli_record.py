@@ -6,6 +6,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -14,7 +15,7 @@ import pytest
 from rerun.chunk import RrdReader
 
 from hilrig.recording import inspect, load, recover
-from hilrig.rig.machine_lock import WAITING
+from hilrig.rig.machine_lock import STOPPED, WAITING, one_session_at_a_time
 
 HILRIG = Path(sys.executable).with_name("hilrig")
 
@@ -294,3 +295,23 @@ def test_scenario_settings_drive_the_volunteer_and_are_recorded(tmp_path: Path) 
     force = state[["force_0", "force_1", "force_2"]].to_numpy()
     peak = np.abs(force).max(axis=0)
     assert peak[0] > 1.0 and peak[0] > 5 * max(peak[1], peak[2])
+
+
+def test_ctrl_c_while_waiting_for_the_machine_is_an_interrupt_that_records_nothing(
+    tmp_path: Path,
+) -> None:
+    out = tmp_path / "session.mcap"
+    command = [str(HILRIG), "record", "--subject", "S004", "--duration", "2", "--out", str(out)]
+    # held by this test (after any session of a run beside this one), the record must wait
+    with one_session_at_a_time(threading.Event()):
+        process = subprocess.Popen(
+            command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        assert process.stderr is not None
+        assert process.stderr.readline() == f"waiting: {WAITING}\n"
+        process.send_signal(signal.SIGINT)
+        stdout, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130
+    assert stderr == f"interrupted: {STOPPED}\n"
+    assert stdout == ""
+    assert list(tmp_path.iterdir()) == []
