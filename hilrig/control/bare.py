@@ -1,8 +1,10 @@
 """The bare law's loop (no state machine): ``run`` without ``cfg[SM]``.
 
 A group is in contact while one of its axes is above delta, and the law's (b, k) change on
-(nearly) every tick (chi follows the sensor noise), so every tick discretises, with
-``run_machine``'s arithmetic: the results are the same to the bit.
+(nearly) every tick (chi follows the sensor noise), so every tick discretises. A trace of at
+least ``MIN_BLOCK_TICKS`` ticks under the ZOH integrator goes to ``blocks.py`` (blocks of ticks,
+phase by phase); a shorter one (``step``: one tick), the Euler integrator and the fixed law go
+tick by tick here. Both give ``run_machine``'s arithmetic: the results are the same to the bit.
 """
 
 from __future__ import annotations
@@ -45,7 +47,11 @@ from hilrig.control.axis import (
     law_gains,
     store,
 )
+from hilrig.control.blocks import run_blocks
 from hilrig.control.zoh import is_near_critical, near_critical
+
+#: Traces from this many ticks on go to ``blocks.py``: below, its scratch costs more than it saves.
+MIN_BLOCK_TICKS = 16
 
 
 @njit(cache=True, error_model="numpy")
@@ -59,6 +65,8 @@ def run_bare(
     contact: NDArray[np.int8],
 ) -> int:
     """``run`` without the state machine; -1, or n*A+i of a non-finite f."""
+    if force.shape[0] >= MIN_BLOCK_TICKS and cfg[INTEGRATOR] == ZOH and cfg[LAW] != FIXED:
+        return run_blocks(force, P, cfg, S, G, out, contact)
     return bare_ticks(force, P, cfg, S, G, out, contact)
 
 

@@ -7,9 +7,9 @@ is the entry point; with the state machine it is ``run_machine`` below, without 
 The packed layout (row indices) and one axis's arithmetic are ``axis.py``'s.
 
 Numba caches each compiled function keyed on its own file: ``run`` compiles ``axis.py``,
-``bare.py`` and ``zoh.py`` into itself, so a change to one of them must come with a change to
-this file (and to ``hilrig/tick/kernel.py``, which compiles ``run`` into itself), or a checkout
-that already has a cache keeps the old code.
+``bare.py``, ``blocks.py``, ``block_terms.py`` and ``zoh.py`` into itself, so a change to one of
+them must come with a change to this file (and to ``hilrig/tick/kernel.py``, which compiles
+``run`` into itself), or a checkout that already has a cache keeps the old code.
 """
 
 from __future__ import annotations
