@@ -54,7 +54,7 @@ from hilrig.control.zoh import is_near_critical, near_critical
 MIN_BLOCK_TICKS = 16
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def run_bare(
     force: NDArray[np.float64],
     P: NDArray[np.float64],
@@ -64,7 +64,8 @@ def run_bare(
     out: NDArray[np.float64],
     contact: NDArray[np.int8],
 ) -> int:
-    """``run`` without the state machine; -1, or n*A+i of a non-finite f."""
+    """``run`` without the state machine; -1, or n*A+i of a non-finite f. Inlined into ``run``:
+    a call between compiled functions costs ``step`` the reference counts of seven arrays."""
     if force.shape[0] >= MIN_BLOCK_TICKS and cfg[INTEGRATOR] == ZOH and cfg[LAW] != FIXED:
         return run_blocks(force, P, cfg, S, G, out, contact)
     return bare_ticks(force, P, cfg, S, G, out, contact)

@@ -3,7 +3,8 @@
 Per tick n and axis i the kernel reads f[n, i], updates the group's contact state (Algorithm 2,
 or contact while above delta without it), picks b and k from the law, applies the Theorem 1
 rate guard, discretises (``zoh.py``) and integrates one period: offset[n] = e(t_n + dt). ``run``
-is the entry point; with the state machine it is ``run_machine`` below, without it ``bare.py``.
+is the entry point; with the state machine it is ``run_machine`` below, without it ``bare.py``'s
+``run_bare`` (inlined: a call between compiled functions costs ``step`` seven arrays' refcounts).
 The packed layout (row indices) and one axis's arithmetic are ``axis.py``'s.
 
 Numba caches each compiled function keyed on its own file: ``run`` compiles ``axis.py``,

@@ -17,7 +17,7 @@ Numba caches this kernel (``cache=True``) with the control kernel compiled into 
 cache on this file alone: a change to the control kernel (``hilrig/control/kernel.py`` and the
 modules it compiles in: ``axis.py``, ``bare.py``, ``blocks.py``, ``block_terms.py``, ``zoh.py``)
 must come with a change to this file, or a checkout that already has a cache keeps ticking with
-the old control kernel (last done for the bare law's blocks of ticks).
+the old control kernel (last done for the bare law's blocks of ticks and ``run_bare`` inlined).
 """
 
 from __future__ import annotations
