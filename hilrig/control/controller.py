@@ -12,7 +12,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hilrig.control import kernel as K
+from hilrig.control import axis as K
+from hilrig.control.kernel import run
 from hilrig.control.packed import Packed, ParamsLike, refuse_nonfinite, resolve_params
 from hilrig.control.params import AdmittanceParams, AxisBounds, Law
 from hilrig.errors import ParameterError
@@ -140,7 +141,7 @@ class AdmittanceController:
     def step(self, force_row: ArrayLike) -> NDArray[np.float64]:
         """Advance one tick with force_row (axes,); raises NonFiniteForceError on NaN/inf."""
         self._force[0] = force_row
-        code = K.run(
+        code = run(
             self._force,
             self._packed.P,
             self._packed.cfg,
@@ -179,7 +180,7 @@ class AdmittanceController:
                 f"{out.shape} {out.dtype}, {contact.shape} {contact.dtype}"
             )
         p = self._packed
-        code = K.run(force, p.P, p.cfg, self._S, self._G, out, contact)
+        code = run(force, p.P, p.cfg, self._S, self._G, out, contact)
         done = ticks if code < 0 else code // axes
         if done > 0:
             self._out[:, 0] = out[:, done - 1]

@@ -1,7 +1,7 @@
 """Parameters resolved, validated and packed into the compiled kernel's arrays.
 
 ``Packed.build`` is where every controller starts: a preset name, an ``AdmittanceParams`` or a
-mapping becomes the kernel's parameter array P and int config cfg (row layout in kernel.py),
+mapping becomes the kernel's parameter array P and int config cfg (row layout in axis.py),
 refused with one ParameterError line when invalid or unstable.
 """
 
@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from hilrig.control import kernel as K  # noqa: N812 - kernel.py's notation
+from hilrig.control import axis as K  # noqa: N812 - the kernel's notation (axis.py)
 from hilrig.control.params import (
     AdmittanceParams,
     AxisBounds,
@@ -45,7 +45,7 @@ def resolve_params(params: ParamsLike) -> AdmittanceParams:
 
 @dataclass(frozen=True)
 class Packed:
-    """Validated parameters packed for the kernel (see kernel.py for the row layout)."""
+    """Validated parameters packed for the kernel (see axis.py for the row layout)."""
 
     law: Law
     params: AdmittanceParams

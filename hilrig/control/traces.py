@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hilrig.control import kernel as K  # noqa: N812 - kernel.py's notation
+from hilrig.control import axis as K  # noqa: N812 - the kernel's notation (axis.py)
 from hilrig.control.controller import OUTPUTS, AdmittanceController, damping_ratio
 from hilrig.control.packed import Packed, ParamsLike, refuse_nonfinite
 from hilrig.control.params import AdmittanceParams, Law

@@ -4,7 +4,7 @@ With x = b dt/(2m), kappa = k dt^2/m and q = kappa - x^2, A dt = Y - x I where Y
 Phi = e^-x (C I + S Y), C = cos sqrt(q), S = sin(sqrt(q))/sqrt(q) (cosh, sinh for q < 0), and
 Gamma = (Psi01, Phi01)/m with Psi01 = dt^2 (1 - Phi00)/kappa, each evaluated without
 cancellation (docs/control.md, Integrators). Every function returns (Phi00, E1, Phi11, Gamma0)
-where Phi01 = dt E1, Phi10 = -(k dt/m) E1 and Gamma1 = (dt/m) E1; ``kernel.py`` stores them.
+where Phi01 = dt E1, Phi10 = -(k dt/m) E1 and Gamma1 = (dt/m) E1; ``axis.py`` stores them.
 """
 
 from __future__ import annotations

@@ -14,9 +14,10 @@ compensated input is finite; the controller steps every tick, on the last fresh 
 stale input, a command fault or a protective stop makes the tick a hold (brake step).
 
 Numba caches this kernel (``cache=True``) with the control kernel compiled into it, but keys the
-cache on this file alone: a change to ``hilrig/control/kernel.py`` must come with a change to
-this file, or a checkout that already has a cache keeps ticking with the old control kernel
-(last done for the control kernel's closed-form discretisation).
+cache on this file alone: a change to the control kernel (``hilrig/control/kernel.py`` and the
+modules it compiles in: ``axis.py``, ``bare.py``, ``blocks.py``, ``block_terms.py``, ``zoh.py``)
+must come with a change to this file, or a checkout that already has a cache keeps ticking with
+the old control kernel (last done for the bare law's blocks of ticks and ``run_bare`` inlined).
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.linalg import expm
 
-from hilrig.control import kernel as K  # noqa: N812 - kernel.py's notation
+from hilrig.control import axis as K  # noqa: N812 - the kernel's notation (axis.py)
 
 
 def closed_form(m: float, b: float, k: float, dt: float) -> np.ndarray:
