@@ -20,6 +20,8 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
+import queue
+import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from multiprocessing.queues import Queue
@@ -45,6 +47,7 @@ __all__ = [
 QUEUE_BATCHES = 50  # 5 s of batches: a viewer stalled longer costs dropped batches
 START_S = 30.0  # the feed's start-up (imports, the stream, a spawned viewer)
 FINISH_S = 30.0  # the feed's last flush after the session (a loaded machine takes its time)
+MARKER_POLL_S = 0.1  # how often stop() looks again whether the feed still runs
 
 
 @dataclass(frozen=True)
@@ -136,9 +139,9 @@ class LiveView(LiveViewPort):
         counts = counts or ViewCounts(error="the recorder did not report on the view")
         shown, problem, said = 0, self._problem, ""
         if self._child.started and not problem:
-            with contextlib.suppress(Exception):  # the recorder's marker may be lost
-                self._queue.put_nowait(None)
-            if not self._child.stop(timeout_s):
+            deadline = time.monotonic() + timeout_s
+            self._end_marker(deadline)
+            if not self._child.stop(max(deadline - time.monotonic(), 0.0)):
                 problem = f"the live view did not finish within {timeout_s:g} s; stopped it"
             done = self._done()
             if done is not None:
@@ -149,6 +152,19 @@ class LiveView(LiveViewPort):
         if problem:  # the feed's own problem names its file already
             problem = unwritten(self._job, problem)
         return LiveReport(counts.sent, counts.dropped, shown, problem or said or counts.error)
+
+    def _end_marker(self, deadline: float) -> None:
+        """Put the end marker (the recorder's is lost when the queue was full at its end, as on a
+        loaded machine), waiting while the feed drains the queue, until ``deadline`` or the
+        feed's exit: a marker dropped here would leave the feed waiting and its file unwritten."""
+        while self._child.alive() and time.monotonic() < deadline:
+            try:
+                self._queue.put(None, timeout=MARKER_POLL_S)
+            except queue.Full:
+                continue
+            except (ValueError, OSError):  # the queue is closed: nothing more can be said
+                return
+            return
 
     def close(self) -> None:
         """Stop the feed if it still runs; release the queue (never waiting on it); remove an

@@ -5,6 +5,9 @@ Whole sessions with a live view: test_live_sessions.py."""
 from __future__ import annotations
 
 import multiprocessing
+import os
+import signal
+import threading
 import time
 from multiprocessing.queues import Queue
 from pathlib import Path
@@ -26,6 +29,7 @@ from hilrig.rig import (
     RecorderFeed,
     RecorderProcess,
     ViewBatch,
+    ViewCounts,
     ViewForwarder,
 )
 from hilrig.rig.view_feed import first_per_period
@@ -131,6 +135,36 @@ def test_a_full_view_queue_drops_batches_and_the_forwarder_never_waits() -> None
     counts = forwarder.finish(0.5)
     assert time.monotonic() - started < 5  # bounded by the hand-over timeout, not the reader
     assert (counts.sent, counts.dropped, counts.error) == (1, 9, "")
+
+
+def test_a_feed_behind_at_the_end_still_gets_its_end_marker_and_writes_its_file(
+    tmp_path: Path,
+) -> None:
+    """On a loaded machine the queue is full when the session ends, so the recorder's end
+    marker is dropped: the view's stop waits for room for its own instead of dropping it too
+    (the feed would wait on, be killed after FINISH_S, and its file would not be written)."""
+    path = tmp_path / "live.rrd"
+    live = LiveView(
+        Sink(SinkKind.SAVE, path=path),
+        session_id="behind",
+        controller="adaptive",
+        source="session.mcap",
+        queue_batches=3,
+    )
+    live.start()
+    feed_pid = live._child.pid
+    assert feed_pid is not None
+    os.kill(feed_pid, signal.SIGSTOP)  # a feed that has fallen behind: it reads nothing now
+    forwarder = ViewForwarder(live.queue, rate_hz=50, batch_s=0.1)
+    feed_rows(forwarder, rows())
+    # the recorder's end, in its own process (here its finish would close the view's queue):
+    # its marker is dropped as the queue is full
+    assert forwarder.queue.full() and forwarder.dropped > 0
+    counts = ViewCounts(forwarder.sent, forwarder.dropped, "")
+    threading.Timer(0.5, os.kill, (feed_pid, signal.SIGCONT)).start()
+    report = live.stop(counts)
+    assert (report.problem, report.shown) == ("", 3)
+    assert path.exists()
 
 
 @pytest.fixture(scope="module")
