@@ -9,7 +9,9 @@ recorded controller as run ``recorded``) and streams them to the desktop viewer,
 server at a URL, or an ``.rrd`` file. A viewer that cannot be reached, or stops taking data, is
 reported once; the feed then ends and the session goes on recording everything. An ``.rrd``
 file must be new: it is refused before the session if it exists, written under a temporary name
-beside it and moved into place at the end, whole, or not at all after a problem.
+beside it and moved into place at the end, whole, or not at all after a problem. A feed still
+behind when the session ends shows what it can in :data:`FINISH_S` less :data:`KEEP_S`, then
+keeps its file (the session up to there) and says how many batches it left unshown.
 
 This module is the session's end: :class:`LiveView`, :func:`check_sink`, :class:`LiveReport`
 (and, for callers of the single module it once was, the logger's public names).
@@ -20,7 +22,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
-import queue
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -30,7 +31,7 @@ from hilrig.errors import ViewError
 from hilrig.outputs import check_new_file, temporary_beside
 from hilrig.rig import VIEW_RATE_HZ, ChildProcess, LiveViewPort, ViewBatch, ViewCounts
 from hilrig.rig.child import CONTEXT
-from hilrig.viz.live_feed import LiveJob, serve, unwritten
+from hilrig.viz.live_feed import FINISH, LiveJob, serve, unwritten
 from hilrig.viz.live_logger import LiveLogger, about_live, event_line, open_live
 from hilrig.viz.sinks import Sink, SinkKind, check_rrd_path, grpc_address
 
@@ -46,8 +47,8 @@ __all__ = [
 
 QUEUE_BATCHES = 50  # 5 s of batches: a viewer stalled longer costs dropped batches
 START_S = 30.0  # the feed's start-up (imports, the stream, a spawned viewer)
-FINISH_S = 30.0  # the feed's last flush after the session (a loaded machine takes its time)
-MARKER_POLL_S = 0.1  # how often stop() looks again whether the feed still runs
+FINISH_S = 30.0  # the feed's last batches and flush after the session (a loaded machine is slow)
+KEEP_S = 7.0  # of that, kept for the last flush and moving the file in: shown until 23 s
 
 
 @dataclass(frozen=True)
@@ -134,14 +135,16 @@ class LiveView(LiveViewPort):
             self._problem = str(err)
 
     def stop(self, counts: ViewCounts | None, *, timeout_s: float = FINISH_S) -> LiveReport:
-        """End the feed (waiting up to ``timeout_s`` for its last flush) and report, with the
-        recorder's ``counts`` (None if the recorder did not report)."""
+        """End the feed (waiting up to ``timeout_s`` for its last batches, of which it shows those
+        it can in ``timeout_s - KEEP_S``, and its flush) and report, with the recorder's
+        ``counts`` (None if the recorder did not report)."""
         counts = counts or ViewCounts(error="the recorder did not report on the view")
         shown, problem, said = 0, self._problem, ""
         if self._child.started and not problem:
-            deadline = time.monotonic() + timeout_s
-            self._end_marker(deadline)
-            if not self._child.stop(max(deadline - time.monotonic(), 0.0)):
+            budget_s = max(timeout_s - KEEP_S, 0.0)
+            with contextlib.suppress(ViewError):  # gone: its exit code says why
+                self._child.send((FINISH, time.monotonic() + budget_s, budget_s))
+            if not self._child.stop(timeout_s):
                 problem = f"the live view did not finish within {timeout_s:g} s; stopped it"
             done = self._done()
             if done is not None:
@@ -152,19 +155,6 @@ class LiveView(LiveViewPort):
         if problem:  # the feed's own problem names its file already
             problem = unwritten(self._job, problem)
         return LiveReport(counts.sent, counts.dropped, shown, problem or said or counts.error)
-
-    def _end_marker(self, deadline: float) -> None:
-        """Put the end marker (the recorder's is lost when the queue was full at its end, as on a
-        loaded machine), waiting while the feed drains the queue, until ``deadline`` or the
-        feed's exit: a marker dropped here would leave the feed waiting and its file unwritten."""
-        while self._child.alive() and time.monotonic() < deadline:
-            try:
-                self._queue.put(None, timeout=MARKER_POLL_S)
-            except queue.Full:
-                continue
-            except (ValueError, OSError):  # the queue is closed: nothing more can be said
-                return
-            return
 
     def close(self) -> None:
         """Stop the feed if it still runs; release the queue (never waiting on it); remove an

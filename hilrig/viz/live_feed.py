@@ -1,8 +1,11 @@
 """The viewer-feed process of the live view: spawned by :class:`~hilrig.viz.live.LiveView`
 (niced where the loop cannot run under SCHED_FIFO), it takes the recorder's batches off the
 bounded queue and logs them with :class:`~hilrig.viz.live_logger.LiveLogger` until the end
-marker or its parent's death. A viewer that cannot be reached, or stops taking data, is said
-once; the feed then ends and the session goes on recording everything. An ``.rrd`` file is
+marker, the end of the queue once the session said it ended (:data:`FINISH`), or its parent's
+death. A feed still behind at the time the session gave it stops showing there and counts what
+it left: its file then holds the session up to that point, whole. A viewer that cannot be
+reached, or stops taking data, is said once; the feed then ends and the session goes on
+recording everything. An ``.rrd`` file is
 written under a temporary name beside it and moved into place once whole (never over a file),
 or removed after a problem.
 """
@@ -36,6 +39,10 @@ CONNECT_TIMEOUT_S = 2.0
 #: where it can, the loop preempts the feed anyway, and a niced feed starved by a busy machine
 #: (``make test`` beside another) fell behind its whole session and never finished.
 NICENESS = 10
+#: The session's word that it ended: ``(FINISH, by_monotonic_s, budget_s)``: the feed shows what
+#: is queued until ``by_monotonic_s``, ``budget_s`` after the word (CLOCK_MONOTONIC is the
+#: machine's clock, not the process's).
+FINISH = "finish"
 
 
 @dataclass(frozen=True)
@@ -75,7 +82,7 @@ def serve(conn: Connection, job: LiveJob) -> None:
         report(conn, "ready")
         _give_up(conn, job, 0, _reason(err))
     report(conn, "ready")
-    problem = _feed(job, live)
+    problem, said = _feed(job, live, conn)
     if not problem:
         try:
             live.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
@@ -85,29 +92,45 @@ def serve(conn: Connection, job: LiveJob) -> None:
     problem = problem or _keep(job)
     if problem:
         _give_up(conn, job, live.batches, problem)
-    report(conn, "done", (live.batches, ""))
+    report(conn, "done", (live.batches, said))
 
 
-def _feed(job: LiveJob, live: LiveLogger) -> str:
-    """Log batches until the end marker or the parent's death; the problem that stopped it
-    ("" if none)."""
+def _feed(job: LiveJob, live: LiveLogger, conn: Connection) -> tuple[str, str]:
+    """Log batches until the end marker, the queue's end after :data:`FINISH`, the time
+    :data:`FINISH` gave, or the parent's death. Returns the problem that stopped it and what to
+    say of batches left unshown ("" if none)."""
     next_check = time.monotonic() + CHECK_S
+    ended, finish_by_s, budget_s = False, float("inf"), 0.0  # until the session says it ended
     try:
         while os.getppid() == job.parent_pid:
             try:
-                batch = job.queue.get(timeout=POLL_S)
+                batch, empty = job.queue.get(timeout=POLL_S), False
             except queue.Empty:
-                pass
-            else:
-                if batch is None:
-                    return ""
+                batch, empty = None, True
+            if not ended and conn.poll():
+                (_, finish_by_s, budget_s), ended = conn.recv(), True
+            if (batch is None and not empty) or (empty and ended):
+                return "", ""  # every batch queued was shown
+            if time.monotonic() >= finish_by_s:
+                left = int(not empty) + _drain(job.queue)
+                return "", f"{left} batches not shown: still behind {budget_s:g} s after the end"
+            if batch is not None:
                 live.log(batch)
             if time.monotonic() >= next_check:  # raises if the viewer stopped taking data
                 live.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
                 next_check = time.monotonic() + CHECK_S
     except Exception as err:  # a viewer problem, whatever it is, must not reach the session
-        return f"the viewer stopped taking data: {_reason(err)}"
-    return ""
+        return f"the viewer stopped taking data: {_reason(err)}", ""
+    return "", ""
+
+
+def _drain(batches: Queue[ViewBatch | None]) -> int:
+    """Take what is left on ``batches`` without showing it; how many batches that was."""
+    left = 0
+    with contextlib.suppress(queue.Empty):
+        while True:
+            left += batches.get_nowait() is not None
+    return left
 
 
 def _reachable(sink: Sink) -> None:

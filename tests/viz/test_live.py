@@ -35,7 +35,7 @@ from hilrig.rig import (
 from hilrig.rig.view_feed import first_per_period
 from hilrig.robot.model import RobotModel
 from hilrig.viz import paths
-from hilrig.viz.live import LiveView, check_sink, event_line
+from hilrig.viz.live import KEEP_S, LiveView, check_sink, event_line
 from hilrig.viz.log import FORCE_SCALE_M_PER_N
 from hilrig.viz.scene import RECORDED
 from hilrig.viz.sinks import Sink, SinkKind
@@ -137,12 +137,13 @@ def test_a_full_view_queue_drops_batches_and_the_forwarder_never_waits() -> None
     assert (counts.sent, counts.dropped, counts.error) == (1, 9, "")
 
 
-def test_a_feed_behind_at_the_end_still_gets_its_end_marker_and_writes_its_file(
+def test_a_feed_behind_at_the_end_shows_what_is_queued_and_writes_its_file(
     tmp_path: Path,
 ) -> None:
     """On a loaded machine the queue is full when the session ends, so the recorder's end
-    marker is dropped: the view's stop waits for room for its own instead of dropping it too
-    (the feed would wait on, be killed after FINISH_S, and its file would not be written)."""
+    marker is dropped: the session's word that it ended, sent beside the queue, ends the feed
+    once it has shown what is queued (it would wait on, be killed after FINISH_S, and its file
+    would not be written)."""
     path = tmp_path / "live.rrd"
     live = LiveView(
         Sink(SinkKind.SAVE, path=path),
@@ -165,6 +166,51 @@ def test_a_feed_behind_at_the_end_still_gets_its_end_marker_and_writes_its_file(
     report = live.stop(counts)
     assert (report.problem, report.shown) == ("", 3)
     assert path.exists()
+
+
+def test_a_feed_still_behind_when_its_time_is_up_keeps_the_session_up_to_there(
+    tmp_path: Path,
+) -> None:
+    """A feed that cannot show the queue in the time the session gives it stops there, writes
+    its file with what it showed (a prefix of the session, whole) and says what it left."""
+    path = tmp_path / "live.rrd"
+    live = LiveView(
+        Sink(SinkKind.SAVE, path=path),
+        session_id="late",
+        controller="adaptive",
+        source="session.mcap",
+    )
+    live.start()
+    feed_pid = live._child.pid
+    assert feed_pid is not None
+    forwarder = ViewForwarder(live.queue, rate_hz=50, batch_s=0.1)
+    ft, joints, ticks = rows()
+    feed_rows(forwarder, (ft[:500], joints[:500], ticks[:500]))
+    first = forwarder.sent
+    wait_until_read(live.queue)
+    os.kill(feed_pid, signal.SIGSTOP)  # behind from here on
+    feed_rows(forwarder, (ft[500:], joints[500:], ticks[500:]))
+    assert forwarder.dropped == 0 and forwarder.sent > first
+    counts = ViewCounts(forwarder.sent, forwarder.dropped, "")
+    threading.Timer(2.0, os.kill, (feed_pid, signal.SIGCONT)).start()  # after its 1 s is up
+    report = live.stop(counts, timeout_s=KEEP_S + 1.0)
+    # every batch it took before the stop is shown, but one it took and had not yet shown
+    assert first - 1 <= report.shown <= first
+    left = forwarder.sent - report.shown
+    assert report.problem == f"{left} batches not shown: still behind 1 s after the end"
+    _, force = read(path).scalars(paths.input_series("x"))
+    assert 0 < len(force) < len(KEPT)
+    assert force.tolist() == ticks["force"][KEPT[: len(force)], 0].tolist()
+
+
+def wait_until_read(q: Queue[ViewBatch | None], timeout_s: float = 60.0) -> None:
+    """Until the queue was seen empty five times in a row 0.1 s apart (its feeder thread in
+    this process has handed everything over and the feed took it)."""
+    deadline, seen = time.monotonic() + timeout_s, 0
+    while seen < 5:
+        assert time.monotonic() < deadline, "the feed read nothing in 60 s"
+        seen = seen + 1 if q.empty() else 0
+        time.sleep(0.1)
 
 
 @pytest.fixture(scope="module")
