@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import fcntl
 import os
 import time
 from collections.abc import Iterator
@@ -49,6 +50,10 @@ QUEUE_BATCHES = 50  # 5 s of batches: a viewer stalled longer costs dropped batc
 START_S = 30.0  # the feed's start-up (imports, the stream, a spawned viewer)
 FINISH_S = 30.0  # the feed's last batches and flush after the session (a loaded machine is slow)
 KEEP_S = 7.0  # of that, kept for the last flush and moving the file in: shown until 23 s
+#: The queue's pipe holds every batch the queue admits (about 6 kB each; Linux's default pipe,
+#: 64 KiB, held ten): the recorder's queue thread then never waits on a feed behind, and the
+#: batches it holds are not lost when the recorder exits (19 of 351 were, beside `make test`).
+PIPE_BYTES = 1 << 20
 
 
 @dataclass(frozen=True)
@@ -101,6 +106,7 @@ class LiveView(LiveViewPort):
     ) -> None:
         check_sink(sink)
         self._queue: Queue[ViewBatch | None] = CONTEXT.Queue(queue_batches)
+        _widen_pipe(self._queue)
         self.rate_hz = rate_hz
         keep_as = sink.path if sink.kind is SinkKind.SAVE else None
         if keep_as is not None:  # the feed writes beside it and moves it in when whole
@@ -151,6 +157,9 @@ class LiveView(LiveViewPort):
                 shown, said = done
             elif not problem:
                 problem = f"the live view exited with code {self._child.exitcode}"
+            if not problem and not counts.error and shown < counts.sent:
+                why = said or "lost between the recorder and the feed"
+                said = f"{counts.sent - shown} batches not shown: {why}"
         self.close()
         if problem:  # the feed's own problem names its file already
             problem = unwritten(self._job, problem)
@@ -174,6 +183,16 @@ class LiveView(LiveViewPort):
         except ViewError:
             return None
         return done
+
+
+def _widen_pipe(batches: Queue[ViewBatch | None]) -> None:
+    """Let the pipe under ``batches`` hold :data:`PIPE_BYTES`; as it was where it cannot (the
+    queue's pipe is not public, another OS, a lower ``/proc/sys/fs/pipe-max-size``)."""
+    writer = getattr(batches, "_writer", None)
+    if writer is None or not hasattr(fcntl, "F_SETPIPE_SZ"):
+        return
+    with contextlib.suppress(OSError, ValueError):
+        fcntl.fcntl(writer.fileno(), fcntl.F_SETPIPE_SZ, PIPE_BYTES)
 
 
 @contextlib.contextmanager

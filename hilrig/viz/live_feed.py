@@ -2,8 +2,8 @@
 (niced where the loop cannot run under SCHED_FIFO), it takes the recorder's batches off the
 bounded queue and logs them with :class:`~hilrig.viz.live_logger.LiveLogger` until the end
 marker, the end of the queue once the session said it ended (:data:`FINISH`), or its parent's
-death. A feed still behind at the time the session gave it stops showing there and counts what
-it left: its file then holds the session up to that point, whole. A viewer that cannot be
+death. A feed still behind at the time the session gave it stops showing there and says so: its
+file then holds the session up to that point, whole. A viewer that cannot be
 reached, or stops taking data, is said once; the feed then ends and the session goes on
 recording everything. An ``.rrd`` file is
 written under a temporary name beside it and moved into place once whole (never over a file),
@@ -97,8 +97,8 @@ def serve(conn: Connection, job: LiveJob) -> None:
 
 def _feed(job: LiveJob, live: LiveLogger, conn: Connection) -> tuple[str, str]:
     """Log batches until the end marker, the queue's end after :data:`FINISH`, the time
-    :data:`FINISH` gave, or the parent's death. Returns the problem that stopped it and what to
-    say of batches left unshown ("" if none)."""
+    :data:`FINISH` gave, or the parent's death. Returns the problem that stopped it and why
+    batches queued were left unshown ("" if none)."""
     next_check = time.monotonic() + CHECK_S
     ended, finish_by_s, budget_s = False, float("inf"), 0.0  # until the session says it ended
     try:
@@ -111,9 +111,8 @@ def _feed(job: LiveJob, live: LiveLogger, conn: Connection) -> tuple[str, str]:
                 (_, finish_by_s, budget_s), ended = conn.recv(), True
             if (batch is None and not empty) or (empty and ended):
                 return "", ""  # every batch queued was shown
-            if time.monotonic() >= finish_by_s:
-                left = int(not empty) + _drain(job.queue)
-                return "", f"{left} batches not shown: still behind {budget_s:g} s after the end"
+            if time.monotonic() >= finish_by_s:  # the rest is counted by the session
+                return "", f"still behind {budget_s:g} s after the end"
             if batch is not None:
                 live.log(batch)
             if time.monotonic() >= next_check:  # raises if the viewer stopped taking data
@@ -122,15 +121,6 @@ def _feed(job: LiveJob, live: LiveLogger, conn: Connection) -> tuple[str, str]:
     except Exception as err:  # a viewer problem, whatever it is, must not reach the session
         return f"the viewer stopped taking data: {_reason(err)}", ""
     return "", ""
-
-
-def _drain(batches: Queue[ViewBatch | None]) -> int:
-    """Take what is left on ``batches`` without showing it; how many batches that was."""
-    left = 0
-    with contextlib.suppress(queue.Empty):
-        while True:
-            left += batches.get_nowait() is not None
-    return left
 
 
 def _reachable(sink: Sink) -> None:

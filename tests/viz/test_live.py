@@ -361,6 +361,40 @@ def test_a_recorder_whose_view_nobody_reads_records_every_row_and_stops_in_time(
     q.cancel_join_thread()
 
 
+def test_a_recorder_ending_while_its_feed_is_behind_hands_over_every_batch_it_sent(
+    tmp_path: Path,
+) -> None:
+    """The feed reads nothing while a recorder sends 3 s of batches (30, the queue holds 50)
+    and exits: every batch is in the queue's pipe by then, none left in the recorder's queue
+    thread to die with it (Linux's 64 KiB pipe held 10), and the feed shows them all."""
+    path = tmp_path / "live.rrd"
+    live = LiveView(
+        Sink(SinkKind.SAVE, path=path),
+        session_id="handover",
+        controller="adaptive",
+        source="session.mcap",
+    )
+    live.start()
+    feed_pid = live._child.pid
+    assert feed_pid is not None
+    os.kill(feed_pid, signal.SIGSTOP)
+    sent = rows(3000)
+    with RecorderFeed() as feed:
+        recorder = RecorderProcess(tmp_path / "s.mcap", feed=feed, view=live.queue)
+        recorder.start(session_info())
+        for start in range(0, 3000, 100):
+            push(feed, sent, start, start + 100)
+            time.sleep(0.1)
+        assert recorder.stop() == (3000 * 7, 0)
+    os.kill(feed_pid, signal.SIGCONT)
+    counts = recorder.view_counts
+    assert counts is not None and counts.dropped == 0 and counts.sent >= 25
+    report = live.stop(counts)
+    assert (report.problem, report.shown, report.sent) == ("", counts.sent, counts.sent)
+    _, force = read(path).scalars(paths.input_series("x"))
+    assert force.tolist() == sent[2]["force"][::20, 0].tolist()
+
+
 def push(feed: RecorderFeed, sent: tuple[np.ndarray, ...], start: int, stop: int) -> None:
     """Commit rows ``start..stop-1`` of each of ``sent`` to its ring, as the loop does."""
     for (reserve, commit), r in zip(
