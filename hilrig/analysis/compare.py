@@ -112,9 +112,9 @@ def metrics_frame(analyses: Sequence[Analysis]) -> pd.DataFrame:
     for analysis in analyses:
         laws = {run.name: run.law for run in analysis.source.runs}
         rms = {(t.run, t.axis): t.tracking_rms for t in analysis.tracking}
-        judged = {(v.run, v.event): dataclasses.asdict(v) for v in analysis.verdicts}
+        judged = {(v.run, v.event): _fields(v) for v in analysis.verdicts}
         for m in analysis.metrics:
-            row = dataclasses.asdict(m) | {"group": m.group.value}
+            row = _fields(m) | {"group": m.group.value}
             row |= {"source": analysis.source.name, "law": laws[m.run]}
             row |= judged.get((m.run, m.event), {})
             rows.append(row | {"tracking_rms": rms[(m.run, m.axis)]})
@@ -127,6 +127,17 @@ def metrics_frame(analyses: Sequence[Analysis]) -> pd.DataFrame:
     for text in ("body_region", "verdict", "binding"):
         frame[text] = frame[text].astype(pd.StringDtype())
     return frame.astype({"event": np.int64})
+
+
+def _fields(record: AxisMetrics | Verdict) -> dict[str, object]:
+    """A record's fields by name, shallow: ``dataclasses.asdict`` deep-copies every value (0.4 ms
+    a row, 5 % of a sweep task's time)."""
+    return {name: getattr(record, name) for name in _FIELD_NAMES[type(record)]}
+
+
+_FIELD_NAMES = {
+    kind: tuple(f.name for f in dataclasses.fields(kind)) for kind in (AxisMetrics, Verdict)
+}
 
 
 def values(analyses: Sequence[Analysis]) -> pd.DataFrame:
