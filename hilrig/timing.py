@@ -26,9 +26,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numba import njit, typeof
+from numba import typeof
 from numpy.typing import NDArray
 
+from hilrig.compiled import njit
 from hilrig.libc import linux_libc
 
 PR_SET_TIMERSLACK = 29

@@ -11,9 +11,9 @@ ones. The other axes of a block: ``general_axis``, scalar, ``bare_ticks``'s arit
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
+from hilrig.compiled import njit
 from hilrig.control.axis import (
     A2,
     CB,

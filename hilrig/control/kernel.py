@@ -18,9 +18,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
+from hilrig.compiled import njit
 from hilrig.control.axis import (
     BD,
     BETA_READING,

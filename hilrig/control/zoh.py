@@ -12,8 +12,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
+
+from hilrig.compiled import njit
 
 # Taylor coefficients of Ch(q) = (1 - cos sqrt(q))/q, Sh(q) = (1 - sin(sqrt(q))/sqrt(q))/q and
 # phi_2(z) = (e^z - 1 - z)/z^2: entire functions, evaluated by their series for small arguments.

@@ -17,8 +17,9 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
+
+from hilrig.compiled import njit
 
 if sys.byteorder != "little":  # pragma: no cover - every platform hilrig runs on
     raise ImportError("hilrig.emulator.frame_kernels writes little-endian frames natively")

@@ -7,8 +7,9 @@ describe a file do not load numba.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
+
+from hilrig.compiled import njit
 
 MESSAGE_OP = 0x05
 HEAD_BYTES = 1 + 8 + 2 + 4 + 8 + 8  # opcode, length, channel, sequence, log and publish times

@@ -25,9 +25,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
+from hilrig.compiled import njit
 from hilrig.robot.kinematics import fk_into
 from hilrig.tick.kernel import CompiledTick, tick_kernel
 from hilrig.tick.row import W_Q_CMD

@@ -22,9 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from numba import njit
 from numpy.typing import NDArray
 
+from hilrig.compiled import njit
 from hilrig.errors import RobotModelError
 from hilrig.robot.model import JOINTS, IkResult, RobotModel
 

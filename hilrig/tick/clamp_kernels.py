@@ -13,8 +13,9 @@ import enum
 import math
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
+
+from hilrig.compiled import njit
 
 
 class Clamp(enum.IntFlag):

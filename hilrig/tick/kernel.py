@@ -13,11 +13,9 @@ Semantics are those of the reference path (pinocchio FK/IK, :class:`SafetyClamp`
 compensated input is finite; the controller steps every tick, on the last fresh input otherwise;
 stale input, a command fault or a protective stop makes the tick a hold (brake step).
 
-Numba caches this kernel (``cache=True``) with the control kernel compiled into it, but keys the
-cache on this file alone: a change to the control kernel (``hilrig/control/kernel.py`` and the
-modules it compiles in: ``axis.py``, ``bare.py``, ``blocks.py``, ``block_terms.py``, ``zoh.py``)
-must come with a change to this file, or a checkout that already has a cache keeps ticking with
-the old control kernel (last done for the bare law's blocks of ticks and ``run_bare`` inlined).
+Numba caches this kernel (``cache=True``) with the control kernel compiled into it; the cache
+is keyed on the source of every module either compiles in (:mod:`hilrig.compiled`), so a change
+to the control kernel alone recompiles the tick too.
 """
 
 from __future__ import annotations
@@ -27,9 +25,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
+from hilrig.compiled import njit
 from hilrig.control import (
     AdmittanceController,
     KernelArrays,

@@ -9,9 +9,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
+from hilrig.compiled import njit
 from hilrig.recording.schema import AXES
 from hilrig.robot import JOINTS
 

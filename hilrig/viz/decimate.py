@@ -12,9 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
+from hilrig.compiled import njit
 from hilrig.errors import ViewError
 
 IntArray = NDArray[np.int64]

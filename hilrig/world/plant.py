@@ -12,9 +12,9 @@ slot loop); the integration is one compiled kernel call per ``advance``.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
+from hilrig.compiled import njit
 from hilrig.drivers.joint_targets.wire import JOINTS, Mode
 from hilrig.drivers.robot_state.wire import RobotState, RobotStatus
 from hilrig.robot.limits import JointLimits

@@ -19,10 +19,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
+from hilrig.compiled import njit
 from hilrig.errors import ParameterError
 from hilrig.robot.limits import JointLimits
 from hilrig.world.plant import integrate, servo_limits

@@ -17,12 +17,12 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 from pymodbus.framer import FramerRTU
 from pymodbus.pdu import DecodePDU
 from pymodbus.pdu.register_message import WriteMultipleRegistersRequest
 
+from hilrig.compiled import njit
 from hilrig.drivers.joint_targets.wire import JOINTS, JointTargets, Mode, RegisterMap
 from hilrig.timing import bound_kernel
 
