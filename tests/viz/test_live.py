@@ -145,16 +145,7 @@ def test_a_feed_behind_at_the_end_shows_what_is_queued_and_writes_its_file(
     once it has shown what is queued (it would wait on, be killed after FINISH_S, and its file
     would not be written)."""
     path = tmp_path / "live.rrd"
-    live = LiveView(
-        Sink(SinkKind.SAVE, path=path),
-        session_id="behind",
-        controller="adaptive",
-        source="session.mcap",
-        queue_batches=3,
-    )
-    live.start()
-    feed_pid = live._child.pid
-    assert feed_pid is not None
+    live, feed_pid = started_view(path, "behind", queue_batches=3)
     os.kill(feed_pid, signal.SIGSTOP)  # a feed that has fallen behind: it reads nothing now
     forwarder = ViewForwarder(live.queue, rate_hz=50, batch_s=0.1)
     feed_rows(forwarder, rows())
@@ -174,15 +165,7 @@ def test_a_feed_still_behind_when_its_time_is_up_keeps_the_session_up_to_there(
     """A feed that cannot show the queue in the time the session gives it stops there, writes
     its file with what it showed (a prefix of the session, whole) and says what it left."""
     path = tmp_path / "live.rrd"
-    live = LiveView(
-        Sink(SinkKind.SAVE, path=path),
-        session_id="late",
-        controller="adaptive",
-        source="session.mcap",
-    )
-    live.start()
-    feed_pid = live._child.pid
-    assert feed_pid is not None
+    live, feed_pid = started_view(path, "late")
     forwarder = ViewForwarder(live.queue, rate_hz=50, batch_s=0.1)
     ft, joints, ticks = rows()
     feed_rows(forwarder, (ft[:500], joints[:500], ticks[:500]))
@@ -201,6 +184,20 @@ def test_a_feed_still_behind_when_its_time_is_up_keeps_the_session_up_to_there(
     _, force = read(path).scalars(paths.input_series("x"))
     assert 0 < len(force) < len(KEPT)
     assert force.tolist() == ticks["force"][KEPT[: len(force)], 0].tolist()
+
+
+def started_view(path: Path, session_id: str, queue_batches: int = 50) -> tuple[LiveView, int]:
+    """A live view saving to ``path``, started, and its feed's pid."""
+    live = LiveView(
+        Sink(SinkKind.SAVE, path=path),
+        session_id=session_id,
+        controller="adaptive",
+        source="session.mcap",
+        queue_batches=queue_batches,
+    )
+    live.start()
+    assert live._child.pid is not None
+    return live, live._child.pid
 
 
 def wait_until_read(q: Queue[ViewBatch | None], timeout_s: float = 60.0) -> None:
@@ -368,15 +365,7 @@ def test_a_recorder_ending_while_its_feed_is_behind_hands_over_every_batch_it_se
     and exits: every batch is in the queue's pipe by then, none left in the recorder's queue
     thread to die with it (Linux's 64 KiB pipe held 10), and the feed shows them all."""
     path = tmp_path / "live.rrd"
-    live = LiveView(
-        Sink(SinkKind.SAVE, path=path),
-        session_id="handover",
-        controller="adaptive",
-        source="session.mcap",
-    )
-    live.start()
-    feed_pid = live._child.pid
-    assert feed_pid is not None
+    live, feed_pid = started_view(path, "handover")
     os.kill(feed_pid, signal.SIGSTOP)
     sent = rows(3000)
     with RecorderFeed() as feed:
