@@ -149,16 +149,19 @@ class LiveView(LiveViewPort):
         if self._child.started and not problem:
             budget_s = max(timeout_s - KEEP_S, 0.0)
             with contextlib.suppress(ViewError):  # gone: its exit code says why
-                self._child.send((FINISH, time.monotonic() + budget_s, budget_s))
+                self._child.send((FINISH, time.monotonic() + budget_s))
             if not self._child.stop(timeout_s):
                 problem = f"the live view did not finish within {timeout_s:g} s; stopped it"
             done = self._done()
+            behind = False
             if done is not None:
-                shown, said = done
+                shown, said, behind = done
             elif not problem:
                 problem = f"the live view exited with code {self._child.exitcode}"
-            if not problem and not counts.error and shown < counts.sent:
-                why = said or "lost between the recorder and the feed"
+            if not (problem or said or counts.error) and shown < counts.sent:
+                why = "lost between the recorder and the feed"
+                if behind:
+                    why = f"still behind {budget_s:g} s after the end"
                 said = f"{counts.sent - shown} batches not shown: {why}"
         self.close()
         if problem:  # the feed's own problem names its file already
@@ -174,12 +177,13 @@ class LiveView(LiveViewPort):
         if self._job.keep_as is not None and self._job.sink.path is not None:
             self._job.sink.path.unlink(missing_ok=True)
 
-    def _done(self) -> tuple[int, str] | None:
-        """The feed's final report (batches shown, problem), if it sent one."""
+    def _done(self) -> tuple[int, str, bool] | None:
+        """The feed's final report (batches shown, the problem that ended it, whether its time
+        ran out with batches queued), if it sent one."""
         if not self._child.poll(0):
             return None
         try:
-            done: tuple[int, str] = self._child.receive("done")
+            done: tuple[int, str, bool] = self._child.receive("done")
         except ViewError:
             return None
         return done

@@ -39,9 +39,8 @@ CONNECT_TIMEOUT_S = 2.0
 #: where it can, the loop preempts the feed anyway, and a niced feed starved by a busy machine
 #: (``make test`` beside another) fell behind its whole session and never finished.
 NICENESS = 10
-#: The session's word that it ended: ``(FINISH, by_monotonic_s, budget_s)``: the feed shows what
-#: is queued until ``by_monotonic_s``, ``budget_s`` after the word (CLOCK_MONOTONIC is the
-#: machine's clock, not the process's).
+#: The session's word that it ended: ``(FINISH, by_monotonic_s)``: the feed shows what is queued
+#: until ``by_monotonic_s`` (CLOCK_MONOTONIC is the machine's clock, not the process's).
 FINISH = "finish"
 
 
@@ -82,7 +81,7 @@ def serve(conn: Connection, job: LiveJob) -> None:
         report(conn, "ready")
         _give_up(conn, job, 0, _reason(err))
     report(conn, "ready")
-    problem, said = _feed(job, live, conn)
+    problem, behind = _feed(job, live, conn)
     if not problem:
         try:
             live.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
@@ -92,15 +91,15 @@ def serve(conn: Connection, job: LiveJob) -> None:
     problem = problem or _keep(job)
     if problem:
         _give_up(conn, job, live.batches, problem)
-    report(conn, "done", (live.batches, said))
+    report(conn, "done", (live.batches, "", behind))
 
 
-def _feed(job: LiveJob, live: LiveLogger, conn: Connection) -> tuple[str, str]:
+def _feed(job: LiveJob, live: LiveLogger, conn: Connection) -> tuple[str, bool]:
     """Log batches until the end marker, the queue's end after :data:`FINISH`, the time
-    :data:`FINISH` gave, or the parent's death. Returns the problem that stopped it and why
-    batches queued were left unshown ("" if none)."""
+    :data:`FINISH` gave, or the parent's death. Returns the problem that stopped it ("" if
+    none) and whether the time ran out with batches still queued."""
     next_check = time.monotonic() + CHECK_S
-    ended, finish_by_s, budget_s = False, float("inf"), 0.0  # until the session says it ended
+    ended, finish_by_s = False, float("inf")  # until the session says it ended
     try:
         while os.getppid() == job.parent_pid:
             try:
@@ -108,19 +107,19 @@ def _feed(job: LiveJob, live: LiveLogger, conn: Connection) -> tuple[str, str]:
             except queue.Empty:
                 batch, empty = None, True
             if not ended and conn.poll():
-                (_, finish_by_s, budget_s), ended = conn.recv(), True
+                (_, finish_by_s), ended = conn.recv(), True
             if (batch is None and not empty) or (empty and ended):
-                return "", ""  # every batch queued was shown
+                return "", False  # every batch queued was shown
             if time.monotonic() >= finish_by_s:  # the rest is counted by the session
-                return "", f"still behind {budget_s:g} s after the end"
+                return "", True
             if batch is not None:
                 live.log(batch)
             if time.monotonic() >= next_check:  # raises if the viewer stopped taking data
                 live.rec.flush(timeout_sec=FLUSH_TIMEOUT_S)
                 next_check = time.monotonic() + CHECK_S
     except Exception as err:  # a viewer problem, whatever it is, must not reach the session
-        return f"the viewer stopped taking data: {_reason(err)}", ""
-    return "", ""
+        return f"the viewer stopped taking data: {_reason(err)}", False
+    return "", False
 
 
 def _reachable(sink: Sink) -> None:
@@ -175,5 +174,5 @@ def _give_up(conn: Connection, job: LiveJob, shown: int, problem: str) -> NoRetu
     with contextlib.suppress(OSError, ValueError):
         sys.stderr.write(("\r\033[K" if sys.stderr.isatty() else "") + line)
         sys.stderr.flush()
-    report(conn, "done", (shown, problem))
+    report(conn, "done", (shown, problem, False))
     os._exit(0)
