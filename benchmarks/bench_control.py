@@ -3,12 +3,10 @@
 The reference for throughput is ``scipy.signal.lfilter`` running each axis's fixed-parameter
 ZOH filter over the same trace, timed in the same process (median of alternating runs; the best
 run of each is reported beside it). ``simulate`` returns four (T, A) arrays, 1.04 GB for the
-hour: 4 x lfilter's output, each run in fresh memory, which a second thread populates while the
-kernel writes (:mod:`hilrig.memory`; lfilter's output is NumPy's). On this kind of machine (a VM
-whose host takes back memory the guest frees) writing fresh memory sometimes costs seconds
-rather than a tenth of one, so the suite also times writing 1.04 GB of NumPy's fresh memory
-against rewriting a buffer already in use: the spread of the former is the noise the ratios
-carry. Each law's
+hour: 4 x lfilter's output, each run in fresh memory. On this kind of machine (a VM whose host
+takes back memory the guest frees) writing fresh memory sometimes costs seconds rather than a
+tenth of one, so the suite also times writing 1.04 GB of fresh memory against rewriting a
+buffer already in use: the spread of the former is the noise the ratios carry. Each law's
 kernel is also timed writing into outputs already in use (``run_into`` on one reused buffer):
 its own speed, without the host's share.
 
