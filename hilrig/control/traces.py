@@ -16,7 +16,6 @@ from hilrig.control.controller import OUTPUTS, AdmittanceController, damping_rat
 from hilrig.control.packed import Packed, ParamsLike, refuse_nonfinite
 from hilrig.control.params import AdmittanceParams, Law
 from hilrig.errors import ParameterError
-from hilrig.memory import fresh
 
 
 @dataclass(frozen=True)
@@ -90,13 +89,9 @@ def simulate(
             raise ParameterError("dt and params are required with a law name")
         controller = AdmittanceController(Packed.build(law, params, trace.shape[1], dt))
     T, A = trace.shape  # noqa: N806 - kernel.py's notation
-    out, populating = fresh((len(OUTPUTS), T, A), np.float64)  # first touch on another core
+    out = np.empty((len(OUTPUTS), T, A))
     contact = np.empty((T, A), dtype=np.int8)
-    try:
-        controller.run_into(trace, out, contact)
-    finally:
-        if populating is not None:
-            populating.join()
+    controller.run_into(trace, out, contact)
     columns = dict(zip(OUTPUTS, out, strict=True))
     return SimResult(controller.law, controller.params, controller.dt, contact=contact, **columns)
 

@@ -3,10 +3,10 @@
 A long replay writes gigabytes into fresh memory (1 h at 1 kHz x 9 axes is 1.6 GB per run),
 and the page faults of that first touch cost more than the kernel itself (measured here: about
 0.25 s per GB, the kernel about 0.1 s per GB). So the blocks are an anonymous mapping that a
-background thread populates (:func:`hilrig.memory.populating`: ``madvise(MADV_POPULATE_WRITE)``,
-outside the GIL) while the runs already write into it: the faults are taken on the other core.
-Where the call does not exist (Linux < 5.14, other systems) the thread does nothing and the
-writers take the faults themselves. Blocks shared with a process
+background thread populates with ``madvise(MADV_POPULATE_WRITE)`` - a system call that runs
+outside the GIL and never changes contents - while the runs already write into it: the faults
+are taken on the other core. Where the call does not exist (Linux < 5.14, other systems) the
+thread does nothing and the writers take the faults themselves. Blocks shared with a process
 pool are not populated: there every core already writes (and faults), and populating them too
 measured slower.
 
@@ -17,6 +17,7 @@ the next replay writes into memory already touched and takes no page faults at a
 
 from __future__ import annotations
 
+import ctypes
 import mmap
 import threading
 import weakref
@@ -25,8 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from hilrig import memory
-
+MADV_POPULATE_WRITE = 23  # linux/mman.h (5.14+); not exported by Python's mmap module
 PAGE = 4096
 CACHE_LINE = 64
 
@@ -64,7 +64,10 @@ class Blocks:
         contact = raw[nfloat:size].view(np.int8)
         populating = None
         if new:
-            populating = memory.populating(raw)
+            populating = threading.Thread(
+                target=_populate, args=(raw.ctypes.data, size), name="replay-populate"
+            )
+            populating.start()
         return cls(
             floats.reshape(axes, quantities, float_row)[:, :, :rows],
             contact.reshape(axes, contact_row)[:, :rows],
@@ -107,3 +110,12 @@ class Arena:
 def _padded(size: int) -> int:
     """The least size >= ``size`` (bytes) that is one cache line more than a whole page."""
     return -(-max(size - CACHE_LINE, 0) // PAGE) * PAGE + CACHE_LINE
+
+
+def _populate(address: int, size: int) -> None:
+    try:
+        madvise = ctypes.CDLL(None, use_errno=True).madvise
+    except (OSError, AttributeError):
+        return
+    madvise.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
+    madvise(address, size, MADV_POPULATE_WRITE)  # EINVAL on older kernels: nothing to do
