@@ -3,11 +3,10 @@
 bounded queue and logs them with :class:`~hilrig.viz.live_logger.LiveLogger` until the end
 marker, the end of the queue once the session said it ended (:data:`FINISH`), or its parent's
 death. A feed still behind at the time the session gave it stops showing there and says so: its
-file then holds the session up to that point, whole. A viewer that cannot be
-reached, or stops taking data, is said once; the feed then ends and the session goes on
-recording everything. An ``.rrd`` file is
-written under a temporary name beside it and moved into place once whole (never over a file),
-or removed after a problem.
+file then holds the session up to that point, whole. A viewer that cannot be reached, or stops
+taking data, is said once; the feed then ends and the session goes on recording everything. An
+``.rrd`` file is written under a temporary name beside it and moved into place once whole (never
+over a file), or removed after a problem.
 """
 
 from __future__ import annotations
