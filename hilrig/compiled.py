@@ -37,17 +37,22 @@ _COMPILES = re.compile(r"^\s*(?:from|import)\s+(?:numba\b|hilrig\.compiled\b)", 
 def sources(package: Path = PACKAGE) -> list[Path]:
     """The modules of ``package`` with compiled code (they import numba or this module) and
     every module of it they import, transitively; sorted."""
+    return sorted(_compiled_in(package))
+
+
+def _compiled_in(package: Path) -> dict[Path, str]:
+    """:func:`sources` with their texts."""
     texts = {path: path.read_text(encoding="utf-8") for path in package.rglob("*.py")}
     todo = [path for path, text in texts.items() if _COMPILES.search(text)]
-    found: set[Path] = set()
+    found: dict[Path, str] = {}
     while todo:
         path = todo.pop()
         if path in found:
             continue
-        found.add(path)
+        found[path] = texts[path]
         for name in _IMPORT.findall(texts[path]):
             todo += _modules(package, name.split(".")[1:], texts)
-    return sorted(found)
+    return found
 
 
 def _modules(package: Path, parts: list[str], texts: dict[Path, str]) -> list[Path]:
@@ -59,11 +64,11 @@ def _modules(package: Path, parts: list[str], texts: dict[Path, str]) -> list[Pa
 
 
 def source_key(package: Path = PACKAGE) -> str:
-    """A hash of the names and bytes of :func:`sources` (16 hex digits)."""
+    """A hash of the names and texts of :func:`sources` (16 hex digits)."""
     digest = hashlib.sha256()
-    for path in sources(package):
+    for path, text in sorted(_compiled_in(package).items()):
         digest.update(str(path.relative_to(package)).encode() + b"\0")
-        digest.update(path.read_bytes() + b"\0")
+        digest.update(text.encode() + b"\0")
     return digest.hexdigest()[:16]
 
 
