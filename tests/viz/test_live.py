@@ -4,6 +4,7 @@ Whole sessions with a live view: test_live_sessions.py."""
 
 from __future__ import annotations
 
+import fcntl
 import multiprocessing
 import os
 import signal
@@ -35,7 +36,7 @@ from hilrig.rig import (
 from hilrig.rig.view_feed import first_per_period
 from hilrig.robot.model import RobotModel
 from hilrig.viz import paths
-from hilrig.viz.live import KEEP_S, LiveView, check_sink, event_line
+from hilrig.viz.live import KEEP_S, PIPE_BYTES, LiveView, check_sink, event_line
 from hilrig.viz.log import FORCE_SCALE_M_PER_N
 from hilrig.viz.scene import RECORDED
 from hilrig.viz.sinks import Sink, SinkKind
@@ -382,6 +383,20 @@ def test_a_recorder_ending_while_its_feed_is_behind_hands_over_every_batch_it_se
     assert (report.problem, report.shown, report.sent) == ("", counts.sent, counts.sent)
     _, force = read(path).scalars(paths.input_series("x"))
     assert force.tolist() == sent[2]["force"][::20, 0].tolist()
+
+
+def test_the_view_queues_pipe_is_widened_to_hold_every_batch_it_admits(tmp_path: Path) -> None:
+    """The queue's pipe (reached through multiprocessing's private ``_writer``) is widened: a
+    Python whose queue hid it would leave Linux's 64 KiB, which the test above shows losing
+    batches."""
+    live = LiveView(
+        Sink(SinkKind.SAVE, path=tmp_path / "v.rrd"),
+        session_id="pipe",
+        controller="adaptive",
+        source="session.mcap",
+    )
+    writer = live.queue._writer  # type: ignore[attr-defined]
+    assert fcntl.fcntl(writer.fileno(), fcntl.F_GETPIPE_SZ) == PIPE_BYTES
 
 
 def push(feed: RecorderFeed, sent: tuple[np.ndarray, ...], start: int, stop: int) -> None:
