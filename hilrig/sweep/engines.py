@@ -31,7 +31,7 @@ from typing import Any
 
 from hilrig.errors import SweepError
 from hilrig.libc import linux_libc
-from hilrig.sweep.tasks import Task, TaskResult, run_task
+from hilrig.sweep.tasks import Task, TaskResult, run_task, warm_up
 
 ENGINES = ("local", "ray")
 #: Ray retries a task whose worker or node died this many times, and the local engine replaces
@@ -55,7 +55,10 @@ def local_results(
 ) -> Iterator[TaskResult]:
     """Each task's result from a pool of ``workers`` processes, as they finish. When a worker
     dies (killed, out of memory) the pool breaks: the tasks it had not finished run again on a
-    new pool (with a warning), up to ``MAX_RETRIES`` times; then SweepError."""
+    new pool (with a warning), up to ``MAX_RETRIES`` times; then SweepError. The workers are
+    forked, where the OS can, after :func:`.warm_up` (kernels loaded once, here)."""
+    if _start_method() == "fork":
+        warm_up(tasks)
     left = list(tasks)
     for attempt in range(MAX_RETRIES + 1):
         if attempt:
@@ -79,10 +82,9 @@ def _pool_results(
 ) -> Generator[TaskResult, None, list[Task]]:
     """Each task's result from one pool, as they finish; returns the tasks it lost to a
     broken pool (a worker that died), in their order."""
-    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     sys.stdout.flush()
     sys.stderr.flush()
-    context = multiprocessing.get_context(method)
+    context = multiprocessing.get_context(_start_method())
     size = max(1, min(workers, len(tasks)))
     pool = ProcessPoolExecutor(size, mp_context=context, initializer=_worker_init)
     lost: list[int] = []
@@ -107,6 +109,11 @@ def _pool_results(
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
     return [tasks[index] for index in sorted(lost)]
+
+
+def _start_method() -> str:
+    """How pool workers start: forked where the OS can, else spawned."""
+    return "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
 
 
 def _worker_init() -> None:

@@ -11,6 +11,7 @@ so it gives the same rows wherever and however often it runs; one already done i
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import socket
@@ -19,10 +20,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from hilrig.analysis import Source, SourceKind, analyze, metrics_frame, runs_from_frame
+from hilrig.analysis.events import CARTESIAN_AXES, JOINT_AXES
 from hilrig.errors import HilrigError
+from hilrig.replay import ForceTrace
+from hilrig.replay import run as replay_trace
 from hilrig.replay.job import Replayed, closed_replay_file, replay_file
 from hilrig.replay.results import INPUT_KEY
 from hilrig.replay.specs import ControllerSpec
@@ -34,6 +39,8 @@ from hilrig.sweep.memory import ARENA, keep_freed_memory
 TEXT_COLUMNS = ("source", "run", "law", "group", "axis", "body_region", "verdict", "binding")
 #: Columns a task adds to analysis's metrics: where the input came from and what was swept.
 SWEEP_COLUMNS = ("subject_id", "session_id", "controller", "settings", "input")
+#: :func:`warm_up`'s trace: two ticks of zeros on every axis, at 1 kHz.
+WARM_UP_DT_S = 0.001
 
 
 @dataclass(frozen=True)
@@ -73,6 +80,22 @@ def plan(inputs: Inputs, specs: Sequence[ControllerSpec], *, closed_loop: bool) 
         for item in inputs.files
         for spec in specs
     ]
+
+
+def warm_up(tasks: Sequence[Task]) -> None:
+    """Load in this process the compiled kernels that the open-loop tasks' controllers run
+    (numba loads each from its cache at its first call: 0.3 s of a fresh worker's first task,
+    about the time of a whole task), by replaying two ticks of zeros through every spec: local
+    workers forked after it inherit them instead of each loading them again. A spec that
+    cannot run is left to its own task to report; closed-loop tasks load theirs themselves."""
+    specs = {task.spec.name: task.spec for task in tasks if not task.closed_loop}
+    if not specs:
+        return
+    axes = (*CARTESIAN_AXES, *JOINT_AXES)
+    t_s = np.arange(2, dtype=np.float64) * WARM_UP_DT_S
+    trace = ForceTrace(t_s, np.zeros((2, len(axes))), axes, "warm-up", WARM_UP_DT_S)
+    with contextlib.suppress(HilrigError):
+        replay_trace(trace, list(specs.values()), jobs=1)
 
 
 def run_task(task: Task, root: Path, *, tables: bool = False) -> TaskResult:
