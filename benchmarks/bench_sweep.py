@@ -2,16 +2,19 @@
 pool on the same sweep, tasks per second.
 
 The sweep: 8 force tables of 10 minutes at 1 kHz (9 axes, a collision every 30 s, as
-:func:`benchmarks.bench_control.session_trace`) x 3 adaptive parameter sets = 24 tasks of 0.2-0.3
-s each here (replay, events, metrics, one Parquet partition). Each run writes into a fresh
-folder (a rerun would skip everything); each engine runs twice, alternating, and its best time
-counts (the machine's other load is in the details). Ray runs on a local instance of 2 CPUs,
-started before the timing (its start-up, several seconds, is reported apart): what is compared
-is the engines' cost per task, including each Ray worker's first import of hilrig. Beside them,
-the control suite's reference: ``scipy.signal.lfilter`` over the same trace's 9 axes, in this
-process, and the machine's own scaling from one process to two, without hilrig: the same
-compute-bound loop (``np.sin`` over 32 KiB, in cache) and the same memory-bound one (copying
-256 MiB), each timed alone and then in two processes at once: what two workers can gain here.
+:func:`benchmarks.bench_control.session_trace`) x 9 adaptive parameter sets (``a1`` 5 to 20) =
+72 tasks of 0.25-0.35 s each on a fast machine (replay, events, metrics, one Parquet
+partition). Each run writes into a fresh folder (a rerun would skip everything); each engine
+runs twice, alternating, and its best time counts (the machine's other load is in the details).
+Until 2026-12-05 the sweep had 3 parameter sets (24 tasks): each new worker's first task, which
+takes its memory fresh, then weighed on two workers' 12 tasks each as much as the throughput
+itself (docs/sweeps.md). Ray runs on a local instance of 2 CPUs, started before the timing (its
+start-up, several seconds, is reported apart): what is compared is the engines' cost per task,
+including each Ray worker's first import of hilrig. Beside them, the control suite's reference:
+``scipy.signal.lfilter`` over the same trace's 9 axes, in this process, and the machine's own
+scaling from one process to two, without hilrig: the same compute-bound loop (``np.sin`` over
+32 KiB, in cache) and the same memory-bound one (copying 256 MiB), each timed alone and then in
+two processes at once: what two workers can gain here.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ TRACE_S = 600
 SPEEDUP_TARGET = 1.7
 RAY_RATIO_TARGET = 1.2
 REPEATS = 2
+PARAMETER_SETS = "adaptive.a1=5:20:9"
 
 
 def write_traces(folder: Path) -> list[Path]:
@@ -118,7 +122,7 @@ def run() -> list[Result]:
     work = Path(tempfile.mkdtemp(prefix="hilrig-bench-sweep-"))
     try:
         inputs = find_inputs(write_traces(work))
-        specs = parse_specs(["adaptive"], sweeps=["adaptive.a1=5,10,20"])
+        specs = parse_specs(["adaptive"], sweeps=[PARAMETER_SETS])
         tasks = plan(inputs, specs, closed_loop=False)
         sweep(tasks[:2], work / "warm", workers=1)  # kernels compiled and cached, files in cache
         load = os.getloadavg()[0]
