@@ -7,10 +7,9 @@ is the entry point; with the state machine it is ``run_machine`` below, without 
 ``run_bare`` (inlined: a call between compiled functions costs ``step`` seven arrays' refcounts).
 The packed layout (row indices) and one axis's arithmetic are ``axis.py``'s.
 
-Numba caches each compiled function keyed on its own file: ``run`` compiles ``axis.py``,
-``bare.py``, ``blocks.py``, ``block_terms.py`` and ``zoh.py`` into itself, so a change to one of
-them must come with a change to this file (and to ``hilrig/tick/kernel.py``, which compiles
-``run`` into itself), or a checkout that already has a cache keeps the old code.
+``run`` compiles ``axis.py``, ``bare.py``, ``blocks.py``, ``block_terms.py`` and ``zoh.py`` into
+itself (and ``hilrig/tick/kernel.py`` compiles ``run`` into itself); numba's cache is keyed on
+the sources of all of them (:mod:`hilrig.compiled`), so a change to any one recompiles them.
 """
 
 from __future__ import annotations
