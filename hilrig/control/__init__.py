@@ -6,6 +6,7 @@ Pure computation, no I/O. The public API::
     make(law, params, axes, dt) -> AdmittanceController  # .step(force_row) per tick
     controller.run_into(force, out, contact)            # a block of ticks into your arrays
     damping_ratio(damping, stiffness, mass, out=None)   # zeta, bit-equal to every zeta here
+    damping_ratio_rows(damping, stiffness, mass, out)   # the same over (A, T) rows, compiled
 
 All of them run one compiled kernel, so they give identical numbers. ``run_into`` writes the
 quantities named by ``OUTPUTS``, in that order. Compiled callers (the rig's tick) call that
@@ -17,6 +18,7 @@ from hilrig.control.controller import (
     AdmittanceController,
     KernelArrays,
     damping_ratio,
+    damping_ratio_rows,
     make,
 )
 from hilrig.control.kernel import run as run_compiled
@@ -61,6 +63,7 @@ __all__ = [
     "bounds",
     "combine",
     "damping_ratio",
+    "damping_ratio_rows",
     "gains",
     "make",
     "parse_law",

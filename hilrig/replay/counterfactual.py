@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from hilrig.control import ParameterError, damping_ratio, make
+from hilrig.control import ParameterError, damping_ratio_rows, make
 from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.errors import ReplayError
 from hilrig.recording.schema import AXES
@@ -145,11 +145,11 @@ def simulate_run(
     )
     rows = slice(row0, row0 + n)
     zeta = blocks.floats[:, FLOAT_ROWS["zeta"], rows]
-    damping_ratio(
+    damping_ratio_rows(
         blocks.floats[:, FLOAT_ROWS["damping"], rows],
         blocks.floats[:, FLOAT_ROWS["stiffness"], rows],
-        controller.mass[:, None],
-        out=zeta,
+        controller.mass,
+        zeta,
     )
     if not np.isfinite(blocks.floats[:, :, rows]).all():
         raise ReplayError(f"run {run.name}: the closed loop's result is not finite")

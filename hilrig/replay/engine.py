@@ -5,8 +5,9 @@ Each run is a :mod:`hilrig.control` controller started from rest, exactly what
 letting ``simulate`` allocate (T, A) arrays and then copying them into the table, the
 controller's ``run_into`` writes each tick's offset, velocity, damping and stiffness directly
 into the table's columns (strided views), in blocks of ticks so that progress can be reported;
-force and zeta are then filled column-wise with numpy. That halves the memory traffic, which is
-what a long replay spends its time on (see also :mod:`.blocks`, where that memory comes from).
+force is then copied in column-wise and zeta computed in one compiled pass. That halves the
+memory traffic, which is what a long replay spends its time on (see also :mod:`.blocks`, where
+that memory comes from).
 
 Results are checked as they are made: a run whose offsets or velocities stop being finite
 numbers (a non-finite state never becomes finite again, so the state after each block of ticks
@@ -33,7 +34,14 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from hilrig.control import OUTPUTS, AdmittanceController, Law, ParameterError, damping_ratio, make
+from hilrig.control import (
+    OUTPUTS,
+    AdmittanceController,
+    Law,
+    ParameterError,
+    damping_ratio_rows,
+    make,
+)
 from hilrig.errors import ReplayError
 from hilrig.replay.blocks import Arena, Blocks
 from hilrig.replay.inputs import PathLike, load_trace
@@ -235,8 +243,7 @@ def simulate_into(
     rows = slice(row0, row0 + ticks)
     column = {quantity: floats[:, row, rows] for quantity, row in FLOAT_ROWS.items()}
     column["force"][:] = force.T
-    mass = controller.mass[:, None]
-    damping_ratio(column["damping"], column["stiffness"], mass, out=column["zeta"])
+    damping_ratio_rows(column["damping"], column["stiffness"], controller.mass, column["zeta"])
     # zeta >= 0, and NaN or +inf wherever damping or stiffness is not finite: its max tells
     if ticks and not np.isfinite(np.max(column["zeta"])):
         return _first_nonfinite(column, ("zeta",), 0)

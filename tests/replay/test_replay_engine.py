@@ -159,14 +159,13 @@ def test_a_result_that_is_not_finite_is_refused_naming_the_run_column_and_tick(j
 
 
 def test_a_damping_ratio_that_is_not_finite_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
-    ratio = engine.damping_ratio
+    ratio = engine.damping_ratio_rows
 
-    def broken(*args: object, out: np.ndarray) -> np.ndarray:
-        ratio(*args, out=out)  # type: ignore[arg-type]
-        out[1, 7] = np.nan
-        return out
+    def broken(*args: np.ndarray) -> None:
+        ratio(*args)
+        args[-1][1, 7] = np.nan
 
-    monkeypatch.setattr(engine, "damping_ratio", broken)
+    monkeypatch.setattr(engine, "damping_ratio_rows", broken)
     with pytest.raises(ReplayError) as caught:
         run(trace(ticks=10, axes=AXES[:3]), parse_specs(["fixed"]), jobs=1)
     assert str(caught.value) == (
