@@ -101,6 +101,19 @@ def replay_file(
         resample=resample,
         progress=None if progress is None else lambda done, total: progress("load", done, total),
     )
+    return replay_trace(trace, specs, jobs=jobs, progress=progress, arena=arena)
+
+
+def replay_trace(
+    trace: ForceTrace,
+    specs: Sequence[ControllerSpec],
+    *,
+    jobs: int | None = None,
+    progress: Progress | None = None,
+    arena: Arena | None = None,
+) -> Replayed:
+    """A loaded ``trace`` replayed through ``specs``, as :func:`replay_file` does after loading
+    (the trace is only read: one trace may be replayed again and again)."""
     check_table_size(trace, len(specs))
     runs = [Run.from_spec(spec, trace.axis_names) for spec in specs]
     table = replay(trace, runs, jobs=jobs, progress=progress, arena=arena)
