@@ -27,13 +27,12 @@ from hilrig.analysis import Source, SourceKind, analyze, metrics_frame, runs_fro
 from hilrig.analysis.events import CARTESIAN_AXES, JOINT_AXES
 from hilrig.errors import HilrigError
 from hilrig.replay import ForceTrace
-from hilrig.replay import run as replay_trace
-from hilrig.replay.job import Replayed, closed_replay_file, replay_file
+from hilrig.replay.job import Replayed, closed_replay_file, replay_trace
 from hilrig.replay.results import INPUT_KEY
 from hilrig.replay.specs import ControllerSpec
 from hilrig.sweep.dataset import Layout
 from hilrig.sweep.inputs import NS_PER_S, ExcludedEvent, Inputs
-from hilrig.sweep.memory import ARENA, keep_freed_memory
+from hilrig.sweep.memory import ARENA, keep_freed_memory, trace_of
 
 #: Text columns of the metrics rows, stored as strings whatever the rows hold (even none).
 TEXT_COLUMNS = ("source", "run", "law", "group", "axis", "body_region", "verdict", "binding")
@@ -111,7 +110,7 @@ def run_task(task: Task, root: Path, *, tables: bool = False) -> TaskResult:
         if task.closed_loop:
             replayed = closed_replay_file(task.path, [task.spec])
         else:
-            replayed = replay_file(task.path, [task.spec], jobs=1, arena=ARENA)
+            replayed = replay_trace(trace_of(task.path), [task.spec], jobs=1, arena=ARENA)
         metrics = task_metrics(task, replayed)
         layout.write(task.source, task.run, metrics, replayed.table if tables else None)
     except HilrigError as err:
