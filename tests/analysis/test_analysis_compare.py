@@ -18,6 +18,7 @@ from hilrig.analysis import (
     metrics_frame,
     values,
 )
+from hilrig.analysis.compare import METRIC_COLUMNS, VERDICT_COLUMNS
 from hilrig.control import Law
 from hilrig.errors import AnalysisError
 from hilrig.paper.experiments import BODY, END_EFFECTOR, peaks, run_experiment
@@ -70,6 +71,35 @@ def test_events_are_shared_by_every_run(paper: Analysis) -> None:
     spans = frame.groupby(["event", "axis"])[["start_s", "end_s", "impulse"]].nunique()
     assert (spans == 1).all().all()
     assert set(frame["run"]) == {law.value for law in Law}
+
+
+def test_the_metrics_frame_holds_every_record_with_its_values_and_column_types(
+    paper: Analysis,
+) -> None:
+    """One row per metrics record, in order, its fields as they are (None as NaN); numbers
+    float64, ``event`` int64, verdict texts pandas strings (<NA> here: no body region); nothing
+    analysed gives the same columns."""
+    frame = metrics_frame([paper])
+    assert len(frame) == len(paper.metrics) > 0
+    texts = ("body_region", "verdict", "binding")
+    for row, record in zip(frame.itertuples(index=False), paper.metrics, strict=True):
+        assert (row.run, row.event, row.axis, row.group) == (
+            record.run,
+            record.event,
+            record.axis,
+            record.group.value,
+        )
+        for column in METRIC_COLUMNS:
+            value = getattr(record, column)
+            expected = np.nan if value is None else value
+            assert getattr(row, column) == pytest.approx(expected, rel=0, abs=0, nan_ok=True)
+    numeric = [*METRIC_COLUMNS, "tracking_rms", *(c for c in VERDICT_COLUMNS if c not in texts)]
+    assert all(frame[c].dtype == np.float64 for c in numeric)
+    assert frame["event"].dtype == np.int64
+    assert all(isinstance(frame[c].dtype, pd.StringDtype) for c in texts)
+    assert frame[list(texts)].isna().all().all() and frame[numeric[-1]].isna().all()
+    empty = metrics_frame([])
+    assert list(empty.columns) == list(frame.columns) and empty.empty
 
 
 def test_response_time_change_is_on_time_since_the_event_start(paper: Analysis) -> None:
