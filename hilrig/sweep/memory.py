@@ -60,13 +60,14 @@ _last: dict[tuple[str, int, int, int, int], ForceTrace] = {}
 
 def trace_of(path: Path) -> ForceTrace:
     """The force trace in ``path`` (:func:`hilrig.replay.load_trace`), the one loaded last
-    again when ``path`` is the same file, unchanged (device, inode, size and modification
-    time); raises what ``load_trace`` raises."""
+    again when ``path`` is the same path to the same file, unchanged (device, inode, size and
+    modification time; the path as given, since the trace names its source by it); raises
+    what ``load_trace`` raises."""
     try:
         where = os.stat(path)
     except OSError:
         return load_trace(path)  # which says what is wrong, in one line
-    key = (str(Path(path).resolve()), where.st_dev, where.st_ino, where.st_size, where.st_mtime_ns)
+    key = (str(path), where.st_dev, where.st_ino, where.st_size, where.st_mtime_ns)
     trace = _last.get(key)
     if trace is None:
         _last.clear()  # the old trace is freed before the new one is loaded
