@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from hilrig.analysis import Source, SourceKind, analyze, metrics_frame, runs_from_frame
-from hilrig.analysis.events import CARTESIAN_AXES, JOINT_AXES
+from hilrig.analysis.sources import KNOWN_AXES
 from hilrig.errors import HilrigError
 from hilrig.replay import ForceTrace
 from hilrig.replay.job import Replayed, closed_replay_file, replay_trace
@@ -90,9 +90,9 @@ def warm_up(tasks: Sequence[Task]) -> None:
     specs = {task.spec.name: task.spec for task in tasks if not task.closed_loop}
     if not specs:
         return
-    axes = (*CARTESIAN_AXES, *JOINT_AXES)
     t_s = np.arange(2, dtype=np.float64) * WARM_UP_DT_S
-    trace = ForceTrace(t_s, np.zeros((2, len(axes))), axes, "warm-up", WARM_UP_DT_S)
+    force = np.zeros((2, len(KNOWN_AXES)))
+    trace = ForceTrace(t_s, force, KNOWN_AXES, "warm-up", WARM_UP_DT_S)
     with contextlib.suppress(HilrigError):
         replay_trace(trace, list(specs.values()), jobs=1)
 
