@@ -122,8 +122,8 @@ def metrics_frame(analyses: Sequence[Analysis]) -> pd.DataFrame:
     columns += [*METRIC_COLUMNS, "tracking_rms", *VERDICT_COLUMNS]
     texts = ("body_region", "verdict", "binding")
     numeric = {*METRIC_COLUMNS, "tracking_rms", *VERDICT_COLUMNS} - set(texts)
-    # column by column, each made with its type (a frame of rows, then astype, was 17 ms of a
-    # sweep task's 200 for its 40 rows: pandas' per-column overhead)
+    # column by column, each made with its type (a frame of rows, then astype, took 12 ms for a
+    # sweep task's 141 rows, against 1 ms: pandas' per-column overhead)
     data: dict[str, object] = {}
     for column in columns:
         cells = [row.get(column) for row in rows]
