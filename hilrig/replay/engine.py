@@ -79,9 +79,14 @@ def run(
         load_progress = None if progress is None else _phase(progress, "load")
         trace = load_trace(source, resample=resample, progress=load_progress)
     specs = parse_specs() if controllers is None else controllers
+    return replay(trace, runs_of(trace, specs), jobs=jobs, progress=progress)
+
+
+def runs_of(trace: ForceTrace, specs: Sequence[ControllerSpec]) -> list[Run]:
+    """The runs of ``specs`` on ``trace``, after the size of their result table is checked
+    (:func:`check_table_size`: refused before any run is built); raises ReplayError."""
     check_table_size(trace, len(specs))
-    runs = [Run.from_spec(spec, trace.axis_names) for spec in specs]
-    return replay(trace, runs, jobs=jobs, progress=progress)
+    return [Run.from_spec(spec, trace.axis_names) for spec in specs]
 
 
 def check_table_size(trace: ForceTrace, runs: int) -> None:

@@ -25,7 +25,7 @@ from hilrig.errors import ReplayError
 from hilrig.outputs import new_files
 from hilrig.replay.blocks import Arena
 from hilrig.replay.counterfactual import closed_loop
-from hilrig.replay.engine import Progress, check_table_size, replay
+from hilrig.replay.engine import Progress, replay, runs_of
 from hilrig.replay.inputs import MCAP_SUFFIXES as INPUT_MCAP_SUFFIXES
 from hilrig.replay.inputs import PathLike, load_trace
 from hilrig.replay.outputs import MCAP_SUFFIXES, PARQUET_SUFFIXES, mcap_into, parquet_into
@@ -114,8 +114,7 @@ def replay_trace(
 ) -> Replayed:
     """A loaded ``trace`` replayed through ``specs``, as :func:`replay_file` does after loading
     (the trace is only read: one trace may be replayed again and again)."""
-    check_table_size(trace, len(specs))
-    runs = [Run.from_spec(spec, trace.axis_names) for spec in specs]
+    runs = runs_of(trace, specs)
     table = replay(trace, runs, jobs=jobs, progress=progress, arena=arena)
     return Replayed(trace, runs, table)
 
