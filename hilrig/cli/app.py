@@ -1,18 +1,27 @@
 """The typer application every ``hilrig`` command registers on."""
 
 import typer
-from typer._click import Context
+from typer._click import Command, Context
 from typer.core import TyperGroup, TyperOption
 
 from hilrig.cli.errors import SETTINGS
 
 
 class Group(TyperGroup):
-    """A typer group whose ``--help``, when not given, reads False rather than None.
+    """A typer group whose ``--help``, when not given, reads False rather than None, and whose
+    command list shows each command's first paragraph as one line of prose.
 
     Typer coerces every non-bool parameter value through a pydantic adapter built on first use;
     a group's unset ``--help`` (None) made ``hilrig COMMAND --help`` load pydantic for it.
+    Typer 0.29's command list keeps a docstring's line breaks (its command pages join them).
     """
+
+    def get_command(self, ctx: Context, cmd_name: str) -> Command | None:
+        command = super().get_command(ctx, cmd_name)
+        if command is not None and command.short_help is None and command.help:
+            first_paragraph = command.help.strip().split("\n\n")[0]
+            command.short_help = " ".join(first_paragraph.split())
+        return command
 
     def get_help_option(self, ctx: Context) -> TyperOption | None:
         option = super().get_help_option(ctx)

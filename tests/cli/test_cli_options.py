@@ -1,9 +1,12 @@
 """The light names the command signatures use are the library's, and the help shows them."""
 
 import pytest
+import typer
 from typer.testing import CliRunner
 
 from hilrig.cli import app, options
+from hilrig.cli.rig import rig_app
+from hilrig.cli.study import study_app
 from hilrig.control import Law
 from hilrig.rig import RigKind, SessionConfig
 from hilrig.viz import DEFAULT_MAX_POINTS, DEFAULT_MAX_POSES
@@ -85,3 +88,18 @@ def test_record_help_lists_every_scenario_s_settings() -> None:
         assert f"{name}:" in flat
     assert "stiffness_n_m=300 (the hand's stiffness, N/m)" in flat
     assert "paper-body: period_s=none" in flat
+
+
+@pytest.mark.parametrize(
+    ("group", "typer_app"), [([], app), (["rig"], rig_app), (["study"], study_app)]
+)
+def test_command_lists_show_each_first_paragraph_as_one_line(
+    group: list[str], typer_app: typer.Typer
+) -> None:
+    wide = CliRunner().invoke(app, [*group, "--help"], env={"COLUMNS": "400"})
+    assert wide.exit_code == 0, wide.output
+    assert typer_app.registered_commands
+    for command in typer_app.registered_commands:
+        assert command.callback is not None and command.callback.__doc__ is not None
+        first = " ".join(command.callback.__doc__.split("\n\n")[0].split())
+        assert first in wide.output, (command.callback.__name__, first)
