@@ -31,16 +31,23 @@ LABELS = {
     "peak_commanded_joint_speed_rad_s": "peak joint speed",
     "tracking_rms": "tracking RMS",
 }
-_SHOWN_AS = {"m": ("mm", 1000.0), "m/s": ("mm/s", 1000.0)}  # SI unit -> (display unit, factor)
+SHOWN_AS = {"m": ("mm", 1000.0), "m/s": ("mm/s", 1000.0)}  # SI unit -> (display unit, factor)
 FILE_SUFFIXES = (".csv", ".parquet")
 #: Schema metadata key of a replay result table (hilrig.replay's contract).
 REPLAY_RUNS_KEY = b"hilrig.runs"
 
 
-def _shown(value: float, si_unit: str) -> str:
+def shown_unit(si_unit: str) -> tuple[str, float]:
+    """The unit a value in ``si_unit`` is shown in and the factor to it (``*`` as ``·``)."""
+    shown, factor = SHOWN_AS.get(si_unit, (si_unit, 1.0))
+    return shown.replace("*", "·"), factor
+
+
+def shown(value: float, si_unit: str) -> str:
+    """``value`` (in ``si_unit``) in its shown unit, 4 significant digits; NaN as "-"."""
     if math.isnan(value):
         return "-"
-    _, factor = _SHOWN_AS.get(si_unit, (si_unit, 1.0))
+    _, factor = shown_unit(si_unit)
     return f"{value * factor:.4g}"
 
 
@@ -138,9 +145,9 @@ def comparison_table(comparison: pd.DataFrame, *, baseline: str, title: str) -> 
     for record in comparison.to_dict("records"):
         si_unit = str(record["unit"])
         metric = str(record["metric"])
-        label = f"{LABELS.get(metric, metric)} {_SHOWN_AS.get(si_unit, (si_unit,))[0]}"
+        label = f"{LABELS.get(metric, metric)} {SHOWN_AS.get(si_unit, (si_unit,))[0]}"
         key = (*("all" if pd.isna(record[k]) else str(record[k]) for k in keys), label)
-        cell = _shown(float(record["value"]), si_unit)
+        cell = shown(float(record["value"]), si_unit)
         change = float(record["change_pct"])
         if record["run"] != baseline and not math.isnan(change):
             cell += f" ({change:+.1f} %)"

@@ -21,10 +21,10 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from hilrig.analysis.report import shown_unit
 from hilrig.study.records import METRIC_LABELS, STUDY_METRICS, EventCurve, StudyReport, metric_unit
 
 #: SI unit -> (unit shown, factor): offsets in mm, as the analysis tables show them.
-SHOWN_AS = {"m": ("mm", 1000.0), "m/s": ("mm/s", 1000.0)}
 GROUP_ORDER = ("cartesian", "joint")
 GROUP_LABELS = {"cartesian": "Cartesian axes (x, y, z)", "joint": "joints"}
 _PALETTE = ("#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2")
@@ -53,12 +53,6 @@ class SvgFigure:
     key: str
     title: str
     svg: str
-
-
-def shown_unit(si_unit: str) -> tuple[str, float]:
-    """The unit a value in ``si_unit`` is shown in and the factor to it (``*`` as ``·``)."""
-    shown, factor = SHOWN_AS.get(si_unit, (si_unit, 1.0))
-    return shown.replace("*", "·"), factor
 
 
 def conditions_of(report: StudyReport) -> list[str]:

@@ -127,24 +127,27 @@ def analyse(job: SessionJob, settings: AnalysisSettings) -> pd.DataFrame | str:
         analysis = analyze(source, events=settings.events, safety=settings.safety)
     except HilrigError as err:
         return str(err)
-    frame = metrics_frame([analysis])
-    rows = []
-    for _, event in frame.groupby("event", sort=True):
-        loaded = event.iloc[int(np.argmax(np.abs(event["peak_force"].to_numpy())))]
-        values = {m: float(loaded[m]) if pd.notna(loaded[m]) else np.nan for m in STUDY_METRICS}
-        values |= {m: abs(values[m]) for m in ABSOLUTE}
-        rows.append(
-            {
-                "event": int(loaded["event"]),
-                "group": str(loaded["group"]),
-                "axis": str(loaded["axis"]),
-                "start_s": float(loaded["start_s"]),
-                "end_s": float(loaded["end_s"]),
-                "t0_ns": int(source.start_ns or 0),
-            }
-            | values
-        )
-    return pd.DataFrame(rows, columns=list(EVENT_COLUMNS)).astype({"event": np.int64})
+    loaded = loaded_events(metrics_frame([analysis]))
+    table = loaded.loc[:, [c for c in EVENT_COLUMNS if c != "t0_ns"]]
+    table = table.astype({"event": np.int64, "group": str, "axis": str})
+    table = table.astype(dict.fromkeys(STUDY_METRICS, np.float64))
+    table.insert(EVENT_COLUMNS.index("t0_ns"), "t0_ns", int(source.start_ns or 0))
+    return table.reset_index(drop=True)
+
+
+def loaded_events(metrics: pd.DataFrame, by: Sequence[str] = ()) -> pd.DataFrame:
+    """Each event's row on its loaded axis (the largest |peak force|, the first of equal ones;
+    a NaN peak counts as the largest, as ``np.argmax`` has it) of analysis's metrics rows,
+    grouped by ``by`` and ``event``, peak force and impulse as magnitudes; rows by those keys."""
+    keys = [pd.factorize(metrics[key], sort=True)[0] for key in [*by, "event"]]
+    magnitude = np.abs(metrics["peak_force"].to_numpy(np.float64))
+    rank = np.where(np.isnan(magnitude), np.inf, magnitude)
+    order = np.lexsort((-rank, *reversed(keys)))  # stable: the first of equals leads
+    ordered = np.column_stack([key[order] for key in keys])
+    leads = np.ones(len(order), dtype=bool)
+    leads[1:] = (ordered[1:] != ordered[:-1]).any(axis=1)
+    loaded = metrics.iloc[order[leads]]
+    return loaded.assign(**{m: loaded[m].abs() for m in ABSOLUTE})
 
 
 def observations(

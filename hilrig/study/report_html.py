@@ -3,7 +3,7 @@
 :func:`render` fills ``templates/report.html.j2`` (jinja2, autoescaped, strict) with tables of
 preformatted text and the figures of :mod:`hilrig.study.figures`; :func:`write_report` writes
 it whole or not at all through :func:`hilrig.outputs.new_files`. Values are shown in the units
-of :func:`hilrig.study.figures.shown_unit` (offsets in mm) with three significant digits.
+of :func:`hilrig.analysis.report.shown_unit` (offsets in mm) with three significant digits.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import pandas as pd
 from jinja2 import Environment, PackageLoader, StrictUndefined
 from markupsafe import Markup
 
+from hilrig.analysis.report import shown_unit
 from hilrig.errors import OutputError
 from hilrig.outputs import check_new_file, new_files
 from hilrig.study.figures import (
@@ -26,7 +27,6 @@ from hilrig.study.figures import (
     conditions_of,
     metrics_of,
     report_figures,
-    shown_unit,
 )
 from hilrig.study.records import METRIC_LABELS, StudyReport, metric_unit
 

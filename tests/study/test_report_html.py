@@ -13,9 +13,9 @@ import pytest
 from browser import LoadedPage, open_page
 from report_data import EXCLUDED_REASON, EXCLUDED_SESSION, expected_figures, study_report
 
+from hilrig.analysis.report import shown_unit
 from hilrig.errors import OutputError
 from hilrig.study import report_html
-from hilrig.study.figures import shown_unit
 from hilrig.study.records import StudyReport, metric_unit
 from hilrig.study.report_html import MINUS, MISSING, TIMES, number, p_text
 
