@@ -92,9 +92,13 @@ def sweep_command(
     ] = None,
 ) -> None:
     """Replay every source through every parameter set, one task each, and write each task's
-    per-event metrics; a rerun skips the tasks already written."""
+    per-event metrics; a rerun skips the tasks already written.
+
+    Ends with each parameter set's collisions across subjects: per axis group, the median over
+    subjects of each subject's mean, each event on its loaded axis (docs/sweeps.md)."""
     from rich.console import Console
 
+    from hilrig.cli.sweep_table import summary_tables
     from hilrig.errors import SweepError
     from hilrig.replay.specs import parse_specs
     from hilrig.sweep import find_inputs, plan
@@ -124,6 +128,10 @@ def sweep_command(
             progress=progress,
         )
     console.print(_summary(summary, len(inputs.files), len(specs)))
+    for table in summary_tables(summary.by_run):
+        console.print(table)
+    if summary.by_run.empty:
+        console.print("no collisions in any source: no summary")
 
 
 def _summary(summary: SweepSummary, sources: int, runs: int) -> str:

@@ -6,6 +6,7 @@ local process pool or a Ray cluster (``hilrig sweep``; docs/sweeps.md)::
     tasks = plan(inputs, parse_specs(sweeps=["adaptive.a1=5:20:4"]), closed_loop=False)
     summary = sweep(tasks, Path("out"), engine="local")        # or "ray", address=...
     metrics = read_sweep(Path("out"))                          # one row per run, event, axis
+    summary.by_run, summarise(Path("out"))                     # per run: across subjects
 
 A rerun into the same folder skips what is done, so an interrupted sweep completes.
 """
@@ -15,11 +16,13 @@ from hilrig.sweep.dataset import METRICS, TABLES, Layout, partition_files, read_
 from hilrig.sweep.driver import SweepSummary, sweep
 from hilrig.sweep.engines import ENGINES, SweepWarning
 from hilrig.sweep.inputs import ExcludedEvent, Input, Inputs, find_inputs
+from hilrig.sweep.summary import SUMMARY_COLUMNS, summarise
 from hilrig.sweep.tasks import Task, TaskResult, plan, run_task
 
 __all__ = [
     "ENGINES",
     "METRICS",
+    "SUMMARY_COLUMNS",
     "TABLES",
     "ExcludedEvent",
     "Input",
@@ -35,5 +38,6 @@ __all__ = [
     "plan",
     "read_sweep",
     "run_task",
+    "summarise",
     "sweep",
 ]

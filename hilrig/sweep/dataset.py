@@ -16,7 +16,7 @@ a sweep has completed.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from contextlib import suppress
 from dataclasses import dataclass
 from pathlib import Path
@@ -179,15 +179,20 @@ def _read_manifest(path: Path) -> dict[str, Any]:
     return document
 
 
-def read_sweep(root: Path, kind: str = METRICS) -> pd.DataFrame:
-    """Every row of the ``kind`` dataset under ``root``, sorted by source, run and then the
-    rows' own order (partition keys as strings). Raises SweepError if there is none."""
+def read_sweep(
+    root: Path, kind: str = METRICS, *, columns: Sequence[str] | None = None
+) -> pd.DataFrame:
+    """Every row of the ``kind`` dataset under ``root`` (only ``columns`` when given), sorted
+    by source, run and then the rows' own order (partition keys as strings). Raises SweepError
+    if there is none."""
     folder = root / kind
     if not folder.is_dir():
         raise SweepError(f"{root}: no {kind} of a sweep in it")
     try:
         dataset = ds.dataset(folder, format="parquet", partitioning=_HIVE)
-        frame: pd.DataFrame = dataset.to_table().to_pandas()
+        frame: pd.DataFrame = dataset.to_table(
+            columns=None if columns is None else list(columns)
+        ).to_pandas()
     except (OSError, pa.ArrowException) as err:
         raise SweepError(f"{folder}: cannot read the sweep's {kind} ({err})") from err
     keys = [*PARTITIONS, *(c for c in ("event", "axis", "t_s") if c in frame.columns)]

@@ -19,9 +19,12 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import pandas as pd
+
 from hilrig.errors import SweepError
-from hilrig.sweep.dataset import Layout, describe_runs, prepare
+from hilrig.sweep.dataset import METRICS, Layout, describe_runs, prepare
 from hilrig.sweep.engines import ENGINES, local_results, ray_results
+from hilrig.sweep.summary import Tally, read_tally
 from hilrig.sweep.tasks import Task, TaskResult
 
 #: ``progress(done, total)``: tasks finished (the ones done before this run included), of all.
@@ -30,7 +33,8 @@ Progress = Callable[[int, int], None]
 
 @dataclass(frozen=True)
 class SweepSummary:
-    """What a sweep did: tasks in all, found done, run here (with their results), and where."""
+    """What a sweep did: tasks in all, found done, run here (with their results), where, and
+    its summary: each run's collisions across subjects (:mod:`.summary`, every task's)."""
 
     root: Path
     tasks: int
@@ -38,6 +42,7 @@ class SweepSummary:
     results: tuple[TaskResult, ...]
     seconds: float
     engine: str
+    by_run: pd.DataFrame  # .summary.SUMMARY_COLUMNS
     temporaries_removed: int = 0
 
     @property
@@ -82,6 +87,11 @@ def sweep(
     layout = Layout(root)
     todo = [t for t in tasks if not layout.done(t.source, t.run, tables=tables)]
     finished = len(tasks) - len(todo)
+    runs_tally = Tally(list(specs))
+    owed = {(t.source, t.run) for t in todo}
+    for task in tasks:
+        if (task.source, task.run) not in owed:
+            _add_written(runs_tally, layout, task.source, task.run)
     if progress is not None:
         progress(finished, len(tasks))
     count = workers or local_cores()
@@ -96,6 +106,10 @@ def sweep(
     for result in results:
         collected.append(result)
         finished += 1
+        if result.skipped:
+            _add_written(runs_tally, layout, result.source, result.run)
+        elif not result.error:
+            runs_tally.add(result.run, result.source, result.subject, result.tallies)
         if on_result is not None:
             on_result(result)
         if progress is not None:
@@ -105,7 +119,14 @@ def sweep(
     seconds = time.perf_counter() - began
     done_before = len(tasks) - len(todo)
     summary = SweepSummary(
-        root, len(tasks), done_before, tuple(collected), seconds, engine, removed
+        root,
+        len(tasks),
+        done_before,
+        tuple(collected),
+        seconds,
+        engine,
+        runs_tally.table(),
+        removed,
     )
     if failed:
         first = failed[0]
@@ -115,3 +136,8 @@ def sweep(
             f"run {first.run}: {first.error}"
         )
     return summary
+
+
+def _add_written(by_run: Tally, layout: Layout, source: str, run: str) -> None:
+    """Add to ``by_run`` the metrics a task wrote before (its result carries no tallies)."""
+    by_run.add(run, source, *read_tally(layout.partition(METRICS, source, run), source))

@@ -33,6 +33,7 @@ from hilrig.replay.specs import ControllerSpec
 from hilrig.sweep.dataset import Layout
 from hilrig.sweep.inputs import NS_PER_S, ExcludedEvent, Inputs
 from hilrig.sweep.memory import ARENA, keep_freed_memory, trace_of
+from hilrig.sweep.summary import GroupTally, subject_of, tally
 
 #: Text columns of the metrics rows, stored as strings whatever the rows hold (even none).
 TEXT_COLUMNS = ("source", "run", "law", "group", "axis", "body_region", "verdict", "binding")
@@ -70,6 +71,8 @@ class TaskResult:
     node: str = ""  # the Ray node id (ray engine)
     error: str = ""
     skipped: bool = False
+    subject: str = ""  # the source's subject (:func:`.summary.subject_of`)
+    tallies: tuple[GroupTally, ...] = ()  # its events, for the sweep's summary
 
 
 def plan(inputs: Inputs, specs: Sequence[ControllerSpec], *, closed_loop: bool) -> list[Task]:
@@ -117,7 +120,16 @@ def run_task(task: Task, root: Path, *, tables: bool = False) -> TaskResult:
         message = " ".join(str(err).split())
         return TaskResult(task.source, task.run, worker=worker, error=message)
     seconds = time.perf_counter() - began
-    return TaskResult(task.source, task.run, len(metrics), seconds, worker)
+    subject = subject_of(metrics, task.source)
+    return TaskResult(
+        task.source,
+        task.run,
+        len(metrics),
+        seconds,
+        worker,
+        subject=subject,
+        tallies=tally(metrics),
+    )
 
 
 def task_metrics(task: Task, replayed: Replayed) -> pd.DataFrame:

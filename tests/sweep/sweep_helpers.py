@@ -3,6 +3,7 @@ sweep's command line in a subprocess."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -46,8 +47,9 @@ def force_table(path: Path, duration_s: float, *, seed: int = 0) -> Path:
     return path
 
 
-def hilrig(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
-    """``hilrig ARGS`` in a subprocess, its output captured."""
+def hilrig(*args: str, timeout: float = 120, columns: int = 80) -> subprocess.CompletedProcess[str]:
+    """``hilrig ARGS`` in a subprocess, its output captured (``columns`` wide)."""
+    env = os.environ | {"COLUMNS": str(columns)}
     return subprocess.run(
-        [str(HILRIG), *args], capture_output=True, text=True, timeout=timeout, check=False
+        [str(HILRIG), *args], capture_output=True, text=True, timeout=timeout, check=False, env=env
     )

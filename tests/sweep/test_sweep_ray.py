@@ -157,7 +157,7 @@ def test_ray_on_the_cluster_writes_what_the_local_engine_writes(
     sessions(tmp_path / "in", count=2)
     local = hilrig("sweep", str(tmp_path / "in"), *SWEEP, "-o", str(tmp_path / "local"))
     assert local.returncode == 0, local.stderr
-    env = os.environ | {"RAY_ADDRESS": cluster.address}  # the cluster named as users do
+    env = os.environ | {"RAY_ADDRESS": cluster.address, "COLUMNS": "80"}  # as users name it
     command = [
         "sweep",
         str(tmp_path / "in"),
@@ -180,6 +180,9 @@ def test_ray_on_the_cluster_writes_what_the_local_engine_writes(
     assert " Ray node" in result.stdout
     pd.testing.assert_frame_equal(read_sweep(tmp_path / "ray"), read_sweep(tmp_path / "local"))
     assert len(partition_files(tmp_path / "ray")) == 6
+    summary_tables = result.stdout.splitlines()[1:]  # from the tasks' sums Ray returned
+    assert summary_tables[0].startswith("cartesian collisions per parameter set")
+    assert summary_tables == local.stdout.splitlines()[1:]
 
 
 def warm_up(node: str) -> None:
