@@ -88,10 +88,6 @@ def sweep(
     todo = [t for t in tasks if not layout.done(t.source, t.run, tables=tables)]
     finished = len(tasks) - len(todo)
     runs_tally = Tally(list(specs))
-    owed = {(t.source, t.run) for t in todo}
-    for task in tasks:
-        if (task.source, task.run) not in owed:
-            _add_written(runs_tally, layout, task.source, task.run)
     if progress is not None:
         progress(finished, len(tasks))
     count = workers or local_cores()
@@ -115,6 +111,10 @@ def sweep(
         if progress is not None:
             progress(finished, len(tasks))
     failed = [r for r in collected if r.error]
+    owed = {(t.source, t.run) for t in todo}
+    for task in tasks:  # after the new work, so that a damaged old partition delays none of it
+        if (task.source, task.run) not in owed:
+            _add_written(runs_tally, layout, task.source, task.run)
     removed = 0 if failed else layout.remove_temporaries()
     seconds = time.perf_counter() - began
     done_before = len(tasks) - len(todo)

@@ -93,7 +93,10 @@ def read_tally(path: Path, source: str) -> tuple[str, tuple[GroupTally, ...]]:
     try:
         metrics = pq.read_table(path, columns=list(READ_COLUMNS)).to_pandas()
     except (OSError, pa.ArrowException) as err:
-        raise SweepError(f"{path}: cannot read the task's metrics ({err})") from err
+        raise SweepError(
+            f"{path}: cannot read the task's metrics ({err}); delete it and run the sweep again "
+            "to redo that task"
+        ) from err
     return subject_of(metrics, source), tally(metrics)
 
 

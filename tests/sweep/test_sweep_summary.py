@@ -187,7 +187,7 @@ def test_a_rerun_reads_the_tasks_done_before_into_the_same_summary(
     pd.testing.assert_frame_equal(resumed.by_run, by_run)
 
 
-def test_an_unreadable_partition_is_one_line(
+def test_an_unreadable_old_partition_is_one_line_after_the_new_work(
     swept: tuple[Path, pd.DataFrame], tmp_path: Path
 ) -> None:
     root, _ = swept
@@ -196,10 +196,19 @@ def test_an_unreadable_partition_is_one_line(
     tasks = plan(find_inputs([root / "in"]), SPECS, closed_loop=False)
     path = Layout(broken).partition(METRICS, tasks[0].source, tasks[0].run)
     path.write_bytes(b"not parquet")
+    owed = Layout(broken).partition(METRICS, tasks[1].source, tasks[1].run)
+    owed.unlink()
     with pytest.raises(SweepError) as err:
         run_sweep(tasks, broken)
-    assert str(err.value).startswith(f"{path}: cannot read the task's metrics (")
-    assert "\n" not in str(err.value)
+    assert owed.is_file()  # the task still to do was done first
+    message = str(err.value)
+    assert message.startswith(f"{path}: cannot read the task's metrics (")
+    assert message.endswith("); delete it and run the sweep again to redo that task")
+    assert "\n" not in message
+    path.unlink()
+    redone = run_sweep(tasks, broken)
+    assert [(r.source, r.run) for r in redone.results] == [(tasks[0].source, tasks[0].run)]
+    pd.testing.assert_frame_equal(redone.by_run, swept[1])
 
 
 def test_hilrig_sweep_ends_with_each_group_s_table_of_runs(tmp_path: Path) -> None:
