@@ -33,18 +33,21 @@ def summary_tables(by_run: pd.DataFrame) -> list[Table]:
     return tables
 
 
-def _heading(metric: str, group: str) -> str:
+def _heading(metric: str, group: str, sep: str = " ") -> str:
     unit, _ = shown_unit(metric_unit(metric, group))
-    return f"{METRIC_LABELS[metric]} ({unit})"
+    return f"{METRIC_LABELS[metric]}{sep}({unit})"
 
 
 def _by_run(group: str, rows: pd.DataFrame, metrics: list[str], judged: bool) -> Table:
+    """One row per run. A narrow terminal folds the numbers and headings onto more lines;
+    the run's name is never cut."""
     table = Table(title=f"{group} collisions per parameter set ({HOW})", title_justify="left")
-    heads = ["run", "subjects", "events", *(["ISO over"] if judged else [])]
-    for head in heads:
-        table.add_column(head, justify="left" if head == "run" else "right")
+    longest = max(len(str(run)) for run in rows["run"])
+    table.add_column("run", no_wrap=True, min_width=longest)
+    for head in ["subjects", "events", *(["ISO over"] if judged else [])]:
+        table.add_column(head, justify="right", overflow="fold")
     for metric in metrics:
-        table.add_column(_heading(metric, group), justify="right")
+        table.add_column(_heading(metric, group, "\n"), justify="right", overflow="fold")
     for i in range(len(rows)):
         row = rows.iloc[i]
         cells = [escape(str(row["run"])), str(row["subjects"]), str(row["events"])]
