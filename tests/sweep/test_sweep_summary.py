@@ -265,3 +265,17 @@ def test_a_sweep_without_collisions_says_so(tmp_path: Path) -> None:
     assert done.stdout.splitlines()[1:] == ["no collisions in any source: no summary"]
     by_run = summarise(tmp_path / "out")
     assert by_run.empty and tuple(by_run.columns) == SUMMARY_COLUMNS
+
+
+def test_a_narrow_terminal_folds_numbers_and_never_cuts_a_run_s_name(
+    swept: tuple[Path, pd.DataFrame],
+) -> None:
+    _, by_run = swept
+    console = Console(width=80, record=True)
+    for table in sweep_table.summary_tables(by_run):
+        console.print(table)
+    text = console.export_text()
+    assert "…" not in text
+    lines = text.splitlines()
+    for run in by_run["run"]:
+        assert sum(line.startswith(f"│ {run} ") for line in lines) == 2  # once in each group
