@@ -65,14 +65,16 @@ def tally(metrics: pd.DataFrame) -> tuple[GroupTally, ...]:
     for group in sorted(set(groups)):
         rows = groups == group
         part = values[rows]
+        with np.errstate(invalid="ignore"):  # inf - inf: NaN, as pandas' mean gives it
+            sums = np.nansum(part, axis=0)
         out.append(
             GroupTally(
                 str(group),
                 int(rows.sum()),
                 int(judged[rows].sum()),
                 int(over[rows].sum()),
-                tuple(float(v) for v in np.nansum(part, axis=0)),
-                tuple(int(n) for n in np.isfinite(part).sum(axis=0)),
+                tuple(float(v) for v in sums),
+                tuple(int(n) for n in (~np.isnan(part)).sum(axis=0)),
             )
         )
     return tuple(out)
@@ -189,9 +191,10 @@ class _Cell:
         self.over = sum(p.over for p in parts)
         self.sums = np.zeros(len(STUDY_METRICS))
         self.counts = np.zeros(len(STUDY_METRICS), dtype=np.int64)
-        for part in parts:
-            self.sums += part.sums
-            self.counts += part.counts
+        with np.errstate(invalid="ignore"):
+            for part in parts:
+                self.sums += part.sums
+                self.counts += part.counts
 
     def means(self) -> NDArray[np.float64]:
         with np.errstate(all="ignore"):
@@ -199,5 +202,9 @@ class _Cell:
 
 
 def _median(values: NDArray[np.float64]) -> float:
-    finite = values[np.isfinite(values)]
-    return float(np.median(finite)) if len(finite) else float("nan")
+    """The median of the values that are not NaN (subjects without a value); NaN if none."""
+    kept = values[~np.isnan(values)]
+    if not len(kept):
+        return float("nan")
+    with np.errstate(invalid="ignore"):  # the middle of -inf and inf: NaN
+        return float(np.median(kept))
