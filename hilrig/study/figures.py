@@ -24,7 +24,6 @@ from matplotlib.figure import Figure
 from hilrig.analysis.report import shown_unit
 from hilrig.study.records import METRIC_LABELS, STUDY_METRICS, EventCurve, StudyReport, metric_unit
 
-#: SI unit -> (unit shown, factor): offsets in mm, as the analysis tables show them.
 GROUP_ORDER = ("cartesian", "joint")
 GROUP_LABELS = {"cartesian": "Cartesian axes (x, y, z)", "joint": "joints"}
 _PALETTE = ("#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2")

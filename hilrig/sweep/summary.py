@@ -35,7 +35,7 @@ from hilrig.sweep.dataset import read_sweep
 #: median over subjects of each subject's mean (peak force and impulse as magnitudes).
 SUMMARY_COLUMNS = ("run", "group", "subjects", "events", "judged", "over", *STUDY_METRICS)
 #: The metrics columns a summary reads.
-READ_COLUMNS = ("subject_id", "event", "group", "axis", "verdict", *STUDY_METRICS)
+READ_COLUMNS = ("subject_id", "event", "group", "verdict", *STUDY_METRICS)
 
 
 @dataclass(frozen=True)
