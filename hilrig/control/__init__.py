@@ -7,6 +7,7 @@ Pure computation, no I/O. The public API::
     controller.run_into(force, out, contact)            # a block of ticks into your arrays
     damping_ratio(damping, stiffness, mass, out=None)   # zeta, bit-equal to every zeta here
     damping_ratio_rows(damping, stiffness, mass, out)   # the same over (A, T) rows, compiled
+    release_memory()                                    # the blocks dropped results left (pool.py)
 
 All of them run one compiled kernel, so they give identical numbers. ``run_into`` writes the
 quantities named by ``OUTPUTS``, in that order. Compiled callers (the rig's tick) call that
@@ -34,6 +35,7 @@ from hilrig.control.params import (
     combine,
     parse_law,
 )
+from hilrig.control.pool import release_memory
 from hilrig.control.presets import PAPER_DT_S, PRESETS, preset
 from hilrig.control.stability import StabilityReport, stability_report
 from hilrig.control.traces import SimResult, gains, simulate
@@ -68,6 +70,7 @@ __all__ = [
     "make",
     "parse_law",
     "preset",
+    "release_memory",
     "resolve_params",
     "run_compiled",
     "simulate",

@@ -1,7 +1,8 @@
 """Whole traces: ``simulate`` a force trace from rest, ``gains`` of the bare law.
 
 ``simulate`` runs a controller at rest through :meth:`AdmittanceController.run_into`, the same
-kernel the live ``step`` calls, so its numbers are the live loop's.
+kernel the live ``step`` calls, so its numbers are the live loop's. Its outputs are views of one
+block, which goes back to ``pool`` for the next call when the last of them is dropped.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hilrig.control import axis as K  # noqa: N812 - the kernel's notation (axis.py)
+from hilrig.control import pool
 from hilrig.control.controller import OUTPUTS, AdmittanceController, damping_ratio
 from hilrig.control.packed import Packed, ParamsLike, refuse_nonfinite
 from hilrig.control.params import AdmittanceParams, Law
@@ -75,7 +77,8 @@ def simulate(
     ``law`` is a law name or a controller (whose law, params and dt are used; it is not
     modified). Raises NonFiniteForceError naming the first NaN/inf of force (found by the
     kernel as it goes, so a finite trace is read once), ParameterError for invalid or unstable
-    parameters.
+    parameters. The result's arrays share one block: once all of them are dropped, the next
+    call reuses it (``release_memory`` gives such blocks back to the system).
     """
     trace = _trace(force)
     if isinstance(law, AdmittanceController):
@@ -89,8 +92,10 @@ def simulate(
             raise ParameterError("dt and params are required with a law name")
         controller = AdmittanceController(Packed.build(law, params, trace.shape[1], dt))
     T, A = trace.shape  # noqa: N806 - kernel.py's notation
-    out = np.empty((len(OUTPUTS), T, A))
-    contact = np.empty((T, A), dtype=np.int8)
+    out_bytes = len(OUTPUTS) * T * A * 8
+    block = pool.take(out_bytes + T * A)  # the outputs, then contact: one block (pool.py)
+    out = block[:out_bytes].view(np.float64).reshape(len(OUTPUTS), T, A)
+    contact = block[out_bytes:].view(np.int8).reshape(T, A)
     controller.run_into(trace, out, contact)
     columns = dict(zip(OUTPUTS, out, strict=True))
     return SimResult(controller.law, controller.params, controller.dt, contact=contact, **columns)
