@@ -1,7 +1,7 @@
 """Run every ``benchmarks/bench_*.py`` (each exposes ``run() -> list[Result]``).
 
 Writes ``benchmarks/results/latest.json`` and prints a table. ``python -m benchmarks NAME ...``
-runs only the named suites (e.g. ``control``).
+runs only the named suites (e.g. ``control``); ``--help`` lists them.
 """
 
 from __future__ import annotations
@@ -29,7 +29,17 @@ def main(argv: list[str]) -> int:
         # started in the background by a script: SIGINT is ignored and every child would
         # inherit that, so the Rerun server the session suite stops with Ctrl-C would not stop
         signal.signal(signal.SIGINT, signal.default_int_handler)
-    names = argv or sorted(p.stem.removeprefix("bench_") for p in HERE.glob("bench_*.py"))
+    suites = sorted(p.stem.removeprefix("bench_") for p in HERE.glob("bench_*.py"))
+    if argv and argv[0] in ("-h", "--help"):
+        print(f"{__doc__}\nThe suites: {' '.join(suites)}")
+        return 0
+    unknown = [name for name in argv if name not in suites]
+    if unknown:
+        print(
+            f"benchmarks: no suite {unknown[0]!r}; the suites: {' '.join(suites)}", file=sys.stderr
+        )
+        return 2
+    names = argv or suites
     console = Console()
     results: list[Result] = []
     for name in names:
