@@ -209,6 +209,10 @@ def runs_from_frame(frame: pd.DataFrame) -> tuple[Run, ...]:
         raise AnalysisError(f"not a replay table: missing {absent}")
     if frame.empty:
         raise AnalysisError("a replay table without rows")
+    # pandas deep-copies a frame's attrs (a replay's run metadata) into every column taken from
+    # it: once here, not once for each of the 27 columns of 9 axes
+    frame = frame.copy(deep=False)
+    frame.attrs = {}
     names = frame["run"].unique()
     groups = (
         [(names[0], frame)] if len(names) == 1 else frame.groupby("run", sort=False, observed=True)
