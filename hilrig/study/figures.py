@@ -26,9 +26,9 @@ from hilrig.study.records import METRIC_LABELS, STUDY_METRICS, EventCurve, Study
 
 GROUP_ORDER = ("cartesian", "joint")
 GROUP_LABELS = {"cartesian": "Cartesian axes (x, y, z)", "joint": "joints"}
-_PALETTE = ("#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2")
+PALETTE = ("#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2")
 _BASELINE_COLOUR = "#555555"
-_RC: dict[Any, Any] = {  # matplotlib types its keys as literals
+RC: dict[Any, Any] = {  # matplotlib types its keys as literals
     "svg.fonttype": "path",
     "svg.hashsalt": "hilrig-study",  # the same report twice is the same text
     "text.parse_math": False,  # a "$" in a condition's name is a dollar sign
@@ -65,7 +65,7 @@ def conditions_of(report: StudyReport) -> list[str]:
 def condition_colours(conditions: Sequence[str], baseline: str) -> dict[str, str]:
     """One colour per condition: the baseline grey, the others from a fixed palette."""
     others = [c for c in conditions if c != baseline]
-    colours = {c: _PALETTE[i % len(_PALETTE)] for i, c in enumerate(others)}
+    colours = {c: PALETTE[i % len(PALETTE)] for i, c in enumerate(others)}
     return {baseline: _BASELINE_COLOUR, **colours}
 
 
@@ -93,7 +93,8 @@ def figure_count(report: StudyReport) -> int:
     return count
 
 
-def _new_figure(width_in: float, height_in: float) -> Figure:
+def new_figure(width_in: float, height_in: float) -> Figure:
+    """An empty figure on an Agg canvas (no pyplot, no global state), constrained layout."""
     figure = Figure(figsize=(width_in, height_in), layout="constrained")
     FigureCanvasAgg(figure)
     return figure
@@ -121,7 +122,8 @@ def _svg_text(figure: Figure, key: str, title: str) -> str:
     return text.replace("<svg ", f'<svg class="figure" role="img" aria-label="{label}" ', 1)
 
 
-def _finish(figure: Figure, key: str, title: str) -> SvgFigure:
+def finish(figure: Figure, key: str, title: str) -> SvgFigure:
+    """``figure`` drawn as an :class:`SvgFigure` to embed (ids prefixed with ``key``)."""
     return SvgFigure(key, title, _svg_text(figure, key, title))
 
 
@@ -158,8 +160,8 @@ def distribution_figure(
     unit, factor = shown_unit(si_unit)
     label = METRIC_LABELS.get(metric, metric)
     title = f"{_capital(label)}, {GROUP_LABELS.get(group, group)}: subject values per condition"
-    with mpl.rc_context(_RC):
-        figure = _new_figure(3.3, 2.7)
+    with mpl.rc_context(RC):
+        figure = new_figure(3.3, 2.7)
         ax = figure.subplots()
         rng = np.random.default_rng(0)
         points: dict[str, dict[int, tuple[float, float]]] = {}
@@ -193,7 +195,7 @@ def distribution_figure(
         ax.set_ylabel(f"{label} ({unit})")
         ax.set_title(_capital(label))
         ax.grid(True, axis="y", alpha=0.3)
-        return _finish(figure, f"dist-{group}-{metric}", title)
+        return finish(figure, f"dist-{group}-{metric}", title)
 
 
 def _curve_label(curve: EventCurve) -> str:
@@ -220,8 +222,8 @@ def response_figure(curves: Sequence[EventCurve], group: str, colours: dict[str,
     offset_unit, factor = shown_unit(metric_unit("max_abs_offset", group))
     noun = "torque" if group == "joint" else "force"
     title = f"Representative events, {GROUP_LABELS.get(group, group)}: {noun} and offset"
-    with mpl.rc_context(_RC):
-        figure = _new_figure(5.6, 4.0)
+    with mpl.rc_context(RC):
+        figure = new_figure(5.6, 4.0)
         force_ax, offset_ax = _time_axes(figure, 2)
         for curve in curves:
             colour = colours.get(curve.condition, _BASELINE_COLOUR)
@@ -231,7 +233,7 @@ def response_figure(curves: Sequence[EventCurve], group: str, colours: dict[str,
         offset_ax.set_ylabel(f"offset ({offset_unit})")
         figure.suptitle(title, fontsize=9)
         _legend(figure, [force_ax])
-        return _finish(figure, f"response-{group}", title)
+        return finish(figure, f"response-{group}", title)
 
 
 def parameters_figure(
@@ -241,8 +243,8 @@ def parameters_figure(
     per condition of ``group``."""
     damping_unit, stiffness_unit = _PARAMETER_UNITS.get(group, ("SI", "SI"))
     title = f"Representative events, {GROUP_LABELS.get(group, group)}: controller parameters"
-    with mpl.rc_context(_RC):
-        figure = _new_figure(5.6, 5.0)
+    with mpl.rc_context(RC):
+        figure = new_figure(5.6, 5.0)
         axes = _time_axes(figure, 3)
         for curve in curves:
             colour = colours.get(curve.condition, _BASELINE_COLOUR)
@@ -255,7 +257,7 @@ def parameters_figure(
         axes[2].set_ylabel("damping ratio ζ")
         figure.suptitle(title, fontsize=9)
         _legend(figure, axes)
-        return _finish(figure, f"parameters-{group}", title)
+        return finish(figure, f"parameters-{group}", title)
 
 
 @dataclass(frozen=True)

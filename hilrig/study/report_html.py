@@ -252,7 +252,8 @@ def context(report: StudyReport, progress: Progress | None = None) -> dict[str, 
     }
 
 
-def _environment() -> Environment:
+def environment() -> Environment:
+    """The reports' templates (``templates/``): autoescaped, strict."""
     return Environment(
         loader=PackageLoader("hilrig.study", "templates"),
         autoescape=True,
@@ -264,14 +265,15 @@ def _environment() -> Environment:
 
 def render(report: StudyReport, *, progress: Progress | None = None) -> str:
     """The whole HTML document of ``report``; ``progress(title)`` after each figure drawn."""
-    template = _environment().get_template("report.html.j2")
+    template = environment().get_template("report.html.j2")
     return template.render(context(report, progress))
 
 
-def check_report_path(path: Path, *, overwrite: bool = False) -> None:
-    """Refuse, before any work, a path :func:`write_report` could not write (OutputError)."""
+def check_report_path(path: Path, *, overwrite: bool = False, flag: str = "--overwrite") -> None:
+    """Refuse, before any work, a path :func:`write_report` could not write (OutputError;
+    ``flag`` is the option that would allow replacing it)."""
     if path.exists() and not path.is_dir() and not overwrite:
-        raise OutputError(f"{path}: already exists; pass --overwrite to replace it")
+        raise OutputError(f"{path}: already exists; pass {flag} to replace it")
     check_new_file(path, overwrite=overwrite)
 
 
@@ -284,11 +286,19 @@ def write_report(
 ) -> Path:
     """Write the HTML report of ``report`` to ``path``, whole or not at all; an existing file
     is replaced only with ``overwrite`` (OutputError otherwise, before anything is drawn)."""
-    check_report_path(path, overwrite=overwrite)
-    document = render(report, progress=progress)
+    return write_html(path, lambda: render(report, progress=progress), overwrite=overwrite)
+
+
+def write_html(
+    path: Path, document: Callable[[], str], *, overwrite: bool = False, flag: str = "--overwrite"
+) -> Path:
+    """Write ``document()`` to ``path``, whole or not at all; an existing file is replaced only
+    with ``overwrite`` (OutputError naming ``flag`` otherwise, before ``document`` is called)."""
+    check_report_path(path, overwrite=overwrite, flag=flag)
+    text = document()
     with new_files(path, overwrite=overwrite) as (temporary,):
         try:
-            temporary.write_text(document, encoding="utf-8")
+            temporary.write_text(text, encoding="utf-8")
         except OSError as err:
             raise OutputError(f"{path}: cannot write ({err.strerror})") from err
     return path
