@@ -7,6 +7,8 @@ local process pool or a Ray cluster (``hilrig sweep``; docs/sweeps.md)::
     summary = sweep(tasks, Path("out"), engine="local")        # or "ray", address=...
     metrics = read_sweep(Path("out"))                          # one row per run, event, axis
     summary.by_run, summarise(Path("out"))                     # per run: across subjects
+    summary.by_subject                                         # the subjects' values behind it
+    report.write_sweep_report(summary, specs, Path("r.html"))  # hilrig.sweep.report (matplotlib)
 
 A rerun into the same folder skips what is done, so an interrupted sweep completes.
 """
@@ -16,12 +18,13 @@ from hilrig.sweep.dataset import METRICS, TABLES, Layout, partition_files, read_
 from hilrig.sweep.driver import SweepSummary, sweep
 from hilrig.sweep.engines import ENGINES, SweepWarning
 from hilrig.sweep.inputs import ExcludedEvent, Input, Inputs, find_inputs
-from hilrig.sweep.summary import SUMMARY_COLUMNS, summarise
+from hilrig.sweep.summary import SUBJECT_COLUMNS, SUMMARY_COLUMNS, summarise
 from hilrig.sweep.tasks import Task, TaskResult, plan, run_task
 
 __all__ = [
     "ENGINES",
     "METRICS",
+    "SUBJECT_COLUMNS",
     "SUMMARY_COLUMNS",
     "TABLES",
     "ExcludedEvent",

@@ -43,6 +43,7 @@ class SweepSummary:
     seconds: float
     engine: str
     by_run: pd.DataFrame  # .summary.SUMMARY_COLUMNS
+    by_subject: pd.DataFrame  # .summary.SUBJECT_COLUMNS: the subjects' values behind by_run
     temporaries_removed: int = 0
 
     @property
@@ -126,6 +127,7 @@ def sweep(
         seconds,
         engine,
         runs_tally.table(),
+        runs_tally.by_subject(),
         removed,
     )
     if failed:

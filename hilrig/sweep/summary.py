@@ -34,6 +34,9 @@ from hilrig.sweep.dataset import read_sweep
 #: the events with an ISO/TS 15066 verdict and those over a limit, then per study metric the
 #: median over subjects of each subject's mean (peak force and impulse as magnitudes).
 SUMMARY_COLUMNS = ("run", "group", "subjects", "events", "judged", "over", *STUDY_METRICS)
+#: One row per run, group and subject: the subject's events and its mean of each study metric
+#: (the values whose median over subjects is the summary's).
+SUBJECT_COLUMNS = ("run", "group", "subject", "events", *STUDY_METRICS)
 #: The metrics columns a summary reads.
 READ_COLUMNS = ("subject_id", "event", "group", "verdict", *STUDY_METRICS)
 
@@ -142,6 +145,18 @@ class Tally:
         table = pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS))
         counts = ("subjects", "events", "judged", "over")
         return table.astype(dict.fromkeys(counts, np.int64) | dict.fromkeys(STUDY_METRICS, float))
+
+    def by_subject(self) -> pd.DataFrame:
+        """Each subject's values (:data:`SUBJECT_COLUMNS`): rows by run (as given), group, then
+        subject."""
+        keys = sorted(self._cells, key=lambda key: (self._order[key[0]], key[1], key[2]))
+        rows = []
+        for run, group, subject in keys:
+            cell = _Cell(self._cells[run, group, subject])
+            head = {"run": run, "group": group, "subject": subject, "events": cell.events}
+            rows.append(head | dict(zip(STUDY_METRICS, cell.means(), strict=True)))
+        table = pd.DataFrame(rows, columns=list(SUBJECT_COLUMNS))
+        return table.astype({"events": np.int64} | dict.fromkeys(STUDY_METRICS, float))
 
     def _row_order(self, item: tuple[tuple[str, str], object]) -> tuple[int, str]:
         (run, group), _ = item
