@@ -81,6 +81,18 @@ def sweep_command(
             "Ray instance started on this machine)."
         ),
     ] = None,
+    report: Annotated[
+        Path | None,
+        typer.Option(
+            "--report",
+            help="Also write the sweep's report (.html, offline): each metric against the swept "
+            "parameter, with the subjects' spread, and the summary tables.",
+            show_default=False,
+        ),
+    ] = None,
+    overwrite_report: Annotated[
+        bool, typer.Option("--overwrite-report", help="Replace an existing --report file.")
+    ] = False,
     workers: Annotated[
         int | None,
         typer.Option(
@@ -104,10 +116,13 @@ def sweep_command(
     from hilrig.sweep import find_inputs, plan
     from hilrig.sweep import sweep as run_sweep
     from hilrig.sweep.engines import check_reachable, cluster_address, import_ray
+    from hilrig.sweep.report import check_report, write_sweep_report
 
     console = Console(highlight=False, soft_wrap=True)
     errors = Console(stderr=True, highlight=False, soft_wrap=True)
     specs = parse_specs(controller or [], setting or [], sweep or [])  # refused before any work
+    if report is not None:
+        check_report(report, overwrite=overwrite_report)
     if engine is EngineOption.RAY:
         import_ray()
         check_reachable(cluster_address(address))
@@ -131,7 +146,11 @@ def sweep_command(
     for table in summary_tables(summary.by_run):
         console.print(table)
     if summary.by_run.empty:
-        console.print("no collisions in any source: no summary")
+        console.print("no collisions in any source: no summary" + (", no report" if report else ""))
+    elif report is not None:
+        console.print(
+            f"wrote {write_sweep_report(summary, specs, report, overwrite=overwrite_report)}"
+        )
 
 
 def _summary(summary: SweepSummary, sources: int, runs: int) -> str:
