@@ -88,13 +88,13 @@ def _group(group: str, rows: pd.DataFrame, subjects: pd.DataFrame, where: Layout
             cells.append(number(float(record[metric]) * factor))
         table.append(cells)
     figure = sweep_figure(group, rows, subjects, where)
-    axis = "the runs side by side" if where.x is None else f"against {where.x}"
+    axis = ", run by run" if where.x is None else f" against {where.x}"
     share = f"; {LABELS[OVER]} in % of those judged" if rows[OVER].notna().any() else ""
     return {
         "id": f"group-{group}",
         "label": GROUP_LABELS.get(group, group),
         "figure": Markup(figure.svg),
-        "caption": f"Each metric {axis}{share}.",
+        "caption": f"Each metric{axis}{share}.",
         "columns": headings,
         "rows": table,
     }
