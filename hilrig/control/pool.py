@@ -28,7 +28,8 @@ CAP_BYTES = min(2 << 30, os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"
 _lock = threading.Lock()
 _free: list[NDArray[np.uint8]] = []  # dropped blocks, oldest first; only with _lock held
 # Blocks whose arrays are gone, not yet in _free: a finalizer may run inside a collection while
-# this thread holds _lock, so it only appends here (atomic) and sorts in if the lock is free.
+# this thread holds _lock, so it only appends here (atomic) and sorts in if the lock is free;
+# else the holder, or the next call, does.
 _returned: deque[NDArray[np.uint8]] = deque()
 
 
