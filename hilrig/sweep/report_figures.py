@@ -17,6 +17,8 @@ import matplotlib as mpl
 import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.ticker import FixedFormatter, FixedLocator, NullLocator
 
 from hilrig.analysis.report import shown_unit
 from hilrig.replay.specs import ControllerSpec, Value
@@ -26,16 +28,20 @@ from hilrig.study.records import METRIC_LABELS, STUDY_METRICS, metric_unit
 OVER = "over_pct"  # the share of judged events over an ISO/TS 15066 limit, in the figures
 LABELS = METRIC_LABELS | {OVER: "events over a limit"}
 LEGEND_MAX = 8  # lines named in a legend; more are drawn unnamed
+DECADE = 10.0  # the span of x values from which the axis is logarithmic
 
 
 @dataclass(frozen=True)
 class Layout:
     """Where each run goes: ``x`` the swept setting's key (None: runs side by side), ``xs``
-    each run's value of it (None: a level line), ``lines`` each run's line name."""
+    each run's value of it (None: a level line), ``lines`` each run's line name; ``log_x``
+    when the values are positive and span a decade or more (a log axis spaces 2, 5, 10, 20,
+    40 evenly)."""
 
     x: str | None
     xs: dict[str, float | None]
     lines: dict[str, str]
+    log_x: bool = False
 
 
 def _number(value: Value) -> float | None:
@@ -64,7 +70,8 @@ def layout(specs: Sequence[ControllerSpec]) -> Layout:
         rest = [s.label for s in spec.settings if s.key != x]
         named = " ".join([spec.controller, *rest])
         lines[spec.name] = named if x in settings[spec.name] else spec.name
-    return Layout(x, xs, lines)
+    low, high = min(values[x]), max(values[x])
+    return Layout(x, xs, lines, log_x=low > 0 and high >= DECADE * low)
 
 
 def with_over(by_run: pd.DataFrame) -> pd.DataFrame:
@@ -86,24 +93,30 @@ def sweep_figure(
     group: str, by_run: pd.DataFrame, by_subject: pd.DataFrame, where: Layout
 ) -> SvgFigure:
     """The figure of one axis group: a panel per metric with a value, then the share over."""
-    metrics = [m for m in (*STUDY_METRICS, OVER) if by_run[m].notna().any()]
     with mpl.rc_context(RC):
-        columns = 3
-        rows = -(-len(metrics) // columns)
-        figure = new_figure(10.5, 2.6 * rows + 0.5)
-        panels = figure.subplots(rows, columns, squeeze=False).ravel()
-        names = list(dict.fromkeys(where.lines[r] for r in by_run["run"]))
-        colours = {name: PALETTE[i % len(PALETTE)] for i, name in enumerate(names)}
-        for axes, metric in zip(panels, metrics, strict=False):
-            _panel(axes, metric, group, by_run, by_subject, where, colours)
-        for axes in panels[len(metrics) :]:
-            axes.set_visible(False)
-        if len(names) <= LEGEND_MAX:
-            handles, labels = panels[0].get_legend_handles_labels()
-            figure.legend(handles, labels, loc="outside lower center", ncols=min(len(names), 4))
+        figure = draw(group, by_run, by_subject, where)
         title = f"{GROUP_LABELS.get(group, group)}: each metric across the runs"
         figure.suptitle(title)
         return finish(figure, f"sweep-{group}", title)
+
+
+def draw(group: str, by_run: pd.DataFrame, by_subject: pd.DataFrame, where: Layout) -> Figure:
+    """:func:`sweep_figure`'s panels, drawn (call inside ``mpl.rc_context(RC)``)."""
+    metrics = [m for m in (*STUDY_METRICS, OVER) if by_run[m].notna().any()]
+    columns = 3
+    rows = -(-len(metrics) // columns)
+    figure = new_figure(10.5, 2.6 * rows + 0.5)
+    panels = figure.subplots(rows, columns, squeeze=False).ravel()
+    names = list(dict.fromkeys(where.lines[r] for r in by_run["run"]))
+    colours = {name: PALETTE[i % len(PALETTE)] for i, name in enumerate(names)}
+    for axes, metric in zip(panels, metrics, strict=False):
+        _panel(axes, metric, group, by_run, by_subject, where, colours)
+    for axes in panels[len(metrics) :]:
+        axes.set_visible(False)
+    if len(names) <= LEGEND_MAX:
+        handles, labels = panels[0].get_legend_handles_labels()
+        figure.legend(handles, labels, loc="outside lower center", ncols=min(len(names), 4))
+    return figure
 
 
 def _panel(
@@ -149,4 +162,10 @@ def _panel(
                 band = spread.loc[mine]
                 axes.fill_between(xs, band["q1"], band["q3"], color=colour, alpha=0.15, lw=0)
         axes.set_xlabel(where.x)
+        if where.log_x:  # ticks at the values swept, as plain numbers (no mathtext here: RC)
+            axes.set_xscale("log")
+            ticks = sorted({x for x in where.xs.values() if x is not None})
+            axes.xaxis.set_major_locator(FixedLocator(ticks))
+            axes.xaxis.set_major_formatter(FixedFormatter([f"{x:g}" for x in ticks]))
+            axes.xaxis.set_minor_locator(NullLocator())
     axes.set_title(f"{LABELS[metric]} ({unit})")

@@ -7,6 +7,7 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
+import matplotlib as mpl
 import numpy as np
 import pandas as pd
 import pytest
@@ -15,12 +16,13 @@ from sweep_helpers import force_table, hilrig
 from hilrig.errors import OutputError
 from hilrig.replay import parse_specs
 from hilrig.replay.specs import ControllerSpec
+from hilrig.study.figures import RC
 from hilrig.study.records import STUDY_METRICS
 from hilrig.study.report_html import number
 from hilrig.sweep import SweepSummary, find_inputs, plan
 from hilrig.sweep import sweep as run_sweep
 from hilrig.sweep.report import check_report, write_sweep_report
-from hilrig.sweep.report_figures import layout, quartiles
+from hilrig.sweep.report_figures import draw, layout, quartiles, with_over
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "study"))
 from browser import LoadedPage, open_page
@@ -79,6 +81,45 @@ def test_one_numeric_setting_is_the_x_axis_and_a_run_without_it_a_level() -> Non
     assert where.x == "a1"
     assert [where.xs[name] for name in spec_names(SPECS)] == [5.0, 10.0, 20.0, None]
     assert [where.lines[name] for name in spec_names(SPECS)] == ["adaptive"] * 3 + ["fixed"]
+
+
+def test_values_spanning_a_decade_or_more_are_on_a_log_axis() -> None:
+    assert not layout(SPECS).log_x  # 5 to 20
+    assert layout(parse_specs(["adaptive"], sweeps=["adaptive.a1=2,5,10,20"])).log_x
+    assert not layout(parse_specs(["adaptive"], sweeps=["adaptive.a1=0,5,10,20"])).log_x
+
+
+def summary_of(specs: list[ControllerSpec]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """A by_run and by_subject of the Cartesian group, three subjects, drawn at random."""
+    rng = np.random.default_rng(1)
+    runs, subjects = [], []
+    for spec in specs:
+        values = rng.uniform(0.5, 2.0, size=(3, len(STUDY_METRICS)))
+        subjects += [
+            {"run": spec.name, "group": "cartesian", "subject": f"S{i}", "events": 2}
+            | dict(zip(STUDY_METRICS, row, strict=True))
+            for i, row in enumerate(values)
+        ]
+        counts = {"subjects": 3, "events": 6, "judged": 6, "over": 1}
+        medians = dict(zip(STUDY_METRICS, np.median(values, axis=0), strict=True))
+        runs.append({"run": spec.name, "group": "cartesian"} | counts | medians)
+    return with_over(pd.DataFrame(runs)), pd.DataFrame(subjects)
+
+
+@pytest.mark.parametrize("values", ["2,5,10,20", "5,10,20"])
+def test_the_x_ticks_are_plain_numbers(values: str) -> None:
+    specs = parse_specs(["adaptive"], sweeps=[f"adaptive.a1={values}"])
+    where = layout(specs)
+    with mpl.rc_context(RC):
+        figure = draw("cartesian", *summary_of(specs), where)
+        figure.canvas.draw()
+    shown = [a for a in figure.axes if a.get_visible()]
+    assert len(shown) == len(STUDY_METRICS) + 1  # and the share over a limit
+    for axes in shown:
+        labels = [t.get_text() for t in axes.get_xticklabels() if t.get_text()]
+        assert labels and not any("$" in label for label in labels)
+        if where.log_x:
+            assert labels == values.split(",")
 
 
 def test_of_two_swept_settings_the_one_with_more_values_is_the_x_axis() -> None:
