@@ -10,6 +10,7 @@ Figures are inline SVG drawn by :mod:`hilrig.study.figures`'s canvas.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -29,6 +30,7 @@ OVER = "over_pct"  # the share of judged events over an ISO/TS 15066 limit, in t
 LABELS = METRIC_LABELS | {OVER: "events over a limit"}
 LEGEND_MAX = 8  # lines named in a legend; more are drawn unnamed
 DECADE = 10.0  # the span of x values from which the axis is logarithmic
+MAX_TICKS = 8  # x ticks at every value swept up to this many
 
 
 @dataclass(frozen=True)
@@ -72,6 +74,17 @@ def layout(specs: Sequence[ControllerSpec]) -> Layout:
         lines[spec.name] = named if x in settings[spec.name] else spec.name
     low, high = min(values[x]), max(values[x])
     return Layout(x, xs, lines, log_x=low > 0 and high >= DECADE * low)
+
+
+def _log_ticks(values: list[float]) -> list[float]:
+    """The values swept, or with more than :data:`MAX_TICKS` of them 1, 2 and 5 of each decade
+    between the first and the last."""
+    if len(values) <= MAX_TICKS:
+        return values
+    first, last = values[0], values[-1]
+    decades = range(math.floor(math.log10(first)), math.ceil(math.log10(last)) + 1)
+    steps = (m * 10.0**e for e in decades for m in (1, 2, 5))
+    return [x for x in steps if first <= x <= last]
 
 
 def with_over(by_run: pd.DataFrame) -> pd.DataFrame:
@@ -164,7 +177,7 @@ def _panel(
         axes.set_xlabel(where.x)
         if where.log_x:  # ticks at the values swept, as plain numbers (no mathtext here: RC)
             axes.set_xscale("log")
-            ticks = sorted({x for x in where.xs.values() if x is not None})
+            ticks = _log_ticks(sorted({x for x in where.xs.values() if x is not None}))
             axes.xaxis.set_major_locator(FixedLocator(ticks))
             axes.xaxis.set_major_formatter(FixedFormatter([f"{x:g}" for x in ticks]))
             axes.xaxis.set_minor_locator(NullLocator())

@@ -106,8 +106,11 @@ def summary_of(specs: list[ControllerSpec]) -> tuple[pd.DataFrame, pd.DataFrame]
     return with_over(pd.DataFrame(runs)), pd.DataFrame(subjects)
 
 
-@pytest.mark.parametrize("values", ["2,5,10,20", "5,10,20"])
-def test_the_x_ticks_are_plain_numbers(values: str) -> None:
+@pytest.mark.parametrize(
+    ("values", "ticks"),
+    [("2,5,10,20", "2,5,10,20"), ("5,10,20", ""), ("1:100:50", "1,2,5,10,20,50,100")],
+)
+def test_the_x_ticks_are_plain_numbers(values: str, ticks: str) -> None:
     specs = parse_specs(["adaptive"], sweeps=[f"adaptive.a1={values}"])
     where = layout(specs)
     with mpl.rc_context(RC):
@@ -119,7 +122,7 @@ def test_the_x_ticks_are_plain_numbers(values: str) -> None:
         labels = [t.get_text() for t in axes.get_xticklabels() if t.get_text()]
         assert labels and not any("$" in label for label in labels)
         if where.log_x:
-            assert labels == values.split(",")
+            assert labels == ticks.split(",")
 
 
 def test_of_two_swept_settings_the_one_with_more_values_is_the_x_axis() -> None:
