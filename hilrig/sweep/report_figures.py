@@ -31,6 +31,7 @@ LABELS = METRIC_LABELS | {OVER: "events over a limit"}
 LEGEND_MAX = 8  # lines named in a legend; more are drawn unnamed
 DECADE = 10.0  # the span of x values from which the axis is logarithmic
 MAX_TICKS = 8  # x ticks at every value swept up to this many
+MAX_NAMED_RUNS = 20  # runs side by side named under the x axis up to this many
 
 
 @dataclass(frozen=True)
@@ -156,7 +157,10 @@ def _panel(
                 color=colours[where.lines[run]],
                 label=where.lines[run],
             )
-        axes.set_xticks(range(len(runs)), runs, rotation=30, ha="right")
+        if len(runs) <= MAX_NAMED_RUNS:
+            axes.set_xticks(range(len(runs)), runs, rotation=30, ha="right")
+        else:  # names would overlap: the table below the figure names them in this order
+            axes.set_xlabel("run, in the table's order")
     else:
         for name in dict.fromkeys(where.lines[r] for r in runs):
             mine = [r for r in runs if where.lines[r] == name]

@@ -125,6 +125,21 @@ def test_the_x_ticks_are_plain_numbers(values: str, ticks: str) -> None:
             assert labels == ticks.split(",")
 
 
+@pytest.mark.parametrize("count", [3, 21])
+def test_runs_side_by_side_are_named_under_the_axis_up_to_twenty(count: int) -> None:
+    specs = parse_specs([f"a{i}=adaptive" for i in range(count)])
+    where = layout(specs)
+    with mpl.rc_context(RC):
+        figure = draw("cartesian", *summary_of(specs), where)
+        figure.canvas.draw()
+    axes = figure.axes[0]
+    labels = [t.get_text() for t in axes.get_xticklabels() if t.get_text()]
+    if count <= 20:
+        assert labels == [spec.name for spec in specs] and axes.get_xlabel() == ""
+    else:
+        assert axes.get_xlabel() == "run, in the table's order"
+
+
 def test_of_two_swept_settings_the_one_with_more_values_is_the_x_axis() -> None:
     specs = parse_specs(["adaptive"], sweeps=["adaptive.a1=5,10,20", "adaptive.a2=1,2"])
     where = layout(specs)
