@@ -10,8 +10,8 @@ from numpy.typing import NDArray
 from rich.markup import escape
 from rich.table import Table
 
-from hilrig.analysis.report import shown, shown_unit
-from hilrig.study.records import METRIC_LABELS, STUDY_METRICS, metric_unit
+from hilrig.analysis.report import shown
+from hilrig.study.records import STUDY_METRICS, metric_heading, metric_unit
 
 #: Parameter sets shown row by row; with more, each metric's lowest and highest run.
 MAX_ROWS = 20
@@ -33,11 +33,6 @@ def summary_tables(by_run: pd.DataFrame) -> list[Table]:
     return tables
 
 
-def _heading(metric: str, group: str, sep: str = " ") -> str:
-    unit, _ = shown_unit(metric_unit(metric, group))
-    return f"{METRIC_LABELS[metric]}{sep}({unit})"
-
-
 def _by_run(group: str, rows: pd.DataFrame, metrics: list[str], judged: bool) -> Table:
     """One row per run. A narrow terminal folds the numbers and headings onto more lines;
     the run's name is never cut."""
@@ -47,7 +42,7 @@ def _by_run(group: str, rows: pd.DataFrame, metrics: list[str], judged: bool) ->
     for head in ["subjects", "events", *(["ISO over"] if judged else [])]:
         table.add_column(head, justify="right", overflow="fold")
     for metric in metrics:
-        table.add_column(_heading(metric, group, "\n"), justify="right", overflow="fold")
+        table.add_column(metric_heading(metric, group, "\n"), justify="right", overflow="fold")
     for i in range(len(rows)):
         row = rows.iloc[i]
         cells = [escape(str(row["run"])), str(row["subjects"]), str(row["events"])]
@@ -73,7 +68,7 @@ def _extremes(group: str, rows: pd.DataFrame, metrics: list[str], judged: bool) 
     for metric in metrics:
         si_unit = metric_unit(metric, group)
         values = rows[metric].to_numpy(np.float64)
-        table.add_row(_heading(metric, group), *_span(values, runs, si_unit))
+        table.add_row(metric_heading(metric, group), *_span(values, runs, si_unit))
     return table
 
 

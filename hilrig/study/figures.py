@@ -21,8 +21,13 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from hilrig.analysis.report import shown_unit
-from hilrig.study.records import METRIC_LABELS, STUDY_METRICS, EventCurve, StudyReport, metric_unit
+from hilrig.study.records import (
+    METRIC_LABELS,
+    STUDY_METRICS,
+    EventCurve,
+    StudyReport,
+    shown_metric_unit,
+)
 
 GROUP_ORDER = ("cartesian", "joint")
 GROUP_LABELS = {"cartesian": "Cartesian axes (x, y, z)", "joint": "joints"}
@@ -156,8 +161,7 @@ def distribution_figure(
     rows = values[(values["group"] == group) & (values["metric"] == metric)]
     rows = rows[rows["value"].notna()]
     conditions = [c for c in conditions_of(report) if c in set(rows["condition"])]
-    si_unit = metric_unit(metric, group)
-    unit, factor = shown_unit(si_unit)
+    unit, factor = shown_metric_unit(metric, group)
     label = METRIC_LABELS.get(metric, metric)
     title = f"{_capital(label)}, {GROUP_LABELS.get(group, group)}: subject values per condition"
     with mpl.rc_context(RC):
@@ -218,8 +222,8 @@ def _legend(figure: Figure, axes: list[Axes]) -> None:
 
 def response_figure(curves: Sequence[EventCurve], group: str, colours: dict[str, str]) -> SvgFigure:
     """Force and offset over time of one representative event per condition of ``group``."""
-    force_unit, _ = shown_unit(metric_unit("peak_force", group))
-    offset_unit, factor = shown_unit(metric_unit("max_abs_offset", group))
+    force_unit, _ = shown_metric_unit("peak_force", group)
+    offset_unit, factor = shown_metric_unit("max_abs_offset", group)
     noun = "torque" if group == "joint" else "force"
     title = f"Representative events, {GROUP_LABELS.get(group, group)}: {noun} and offset"
     with mpl.rc_context(RC):

@@ -23,6 +23,7 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from hilrig.analysis.metrics import unit
+from hilrig.analysis.report import shown_unit
 
 FloatArray = NDArray[np.float64]
 
@@ -97,6 +98,17 @@ COMPARISON_COLUMNS = (
 def metric_unit(metric: str, group: str) -> str:
     """The unit of a study metric on an axis of ``group`` ("%" for the safety margin)."""
     return "%" if metric == "margin_pct" else unit(metric, group)
+
+
+def shown_metric_unit(metric: str, group: str) -> tuple[str, float]:
+    """The unit a study metric on ``group``'s axes is shown in and the factor to it (mm)."""
+    return shown_unit(metric_unit(metric, group))
+
+
+def metric_heading(metric: str, group: str, sep: str = " ") -> str:
+    """A study metric's label and shown unit: "maximum offset (mm)" (``sep`` between)."""
+    unit_shown, _ = shown_metric_unit(metric, group)
+    return f"{METRIC_LABELS.get(metric, metric)}{sep}({unit_shown})"
 
 
 @dataclass(frozen=True)

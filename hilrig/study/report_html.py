@@ -19,7 +19,6 @@ import pandas as pd
 from jinja2 import Environment, PackageLoader, StrictUndefined
 from markupsafe import Markup
 
-from hilrig.analysis.report import shown_unit
 from hilrig.errors import OutputError
 from hilrig.outputs import check_new_file, new_files
 from hilrig.study.figures import (
@@ -28,7 +27,7 @@ from hilrig.study.figures import (
     metrics_of,
     report_figures,
 )
-from hilrig.study.records import METRIC_LABELS, StudyReport, metric_unit
+from hilrig.study.records import StudyReport, metric_heading, shown_metric_unit
 
 Progress = Callable[[str], None]
 Row = dict[str, Any]
@@ -97,15 +96,6 @@ def _params(text: object) -> str:
     return ", ".join(f"{k} = {v}" for k, v in params.items())
 
 
-def _unit_text(metric: str, group: str) -> tuple[str, float]:
-    return shown_unit(metric_unit(metric, group))
-
-
-def _metric_label(metric: str, group: str) -> str:
-    unit, _ = _unit_text(metric, group)
-    return f"{METRIC_LABELS.get(metric, metric)} ({unit})"
-
-
 def _spanned(rows: list[Row]) -> list[Row]:
     """Set ``span`` on the first row of each metric (its rowspan), 0 on the others."""
     for index, row in enumerate(rows):
@@ -133,11 +123,11 @@ def comparison_rows(report: StudyReport, group: str) -> list[Row]:
     metrics, conditions = metrics_of(report, group), conditions_of(report)
     rows: list[Row] = []
     for r in _ordered(report.comparisons, group, metrics, conditions).to_dict("records"):
-        _, factor = _unit_text(str(r["metric"]), group)
+        _, factor = shown_metric_unit(str(r["metric"]), group)
         adjusted = float(r["p_adjusted"])
         rows.append(
             {
-                "metric": _metric_label(str(r["metric"]), group),
+                "metric": metric_heading(str(r["metric"]), group),
                 "condition": str(r["condition"]),
                 "design": str(r["design"]),
                 "n": f"{r['n_baseline']} / {r['n_condition']}",
@@ -167,13 +157,13 @@ def distribution_rows(report: StudyReport, group: str) -> list[Row]:
     metrics, conditions = metrics_of(report, group), conditions_of(report)
     rows: list[Row] = []
     for r in _ordered(report.distributions, group, metrics, conditions).to_dict("records"):
-        _, factor = _unit_text(str(r["metric"]), group)
+        _, factor = shown_metric_unit(str(r["metric"]), group)
         scaled = {
             k: float(r[k]) * factor for k in ("median", "q1", "q3", "mean", "sd", "min", "max")
         }
         rows.append(
             {
-                "metric": _metric_label(str(r["metric"]), group),
+                "metric": metric_heading(str(r["metric"]), group),
                 "condition": str(r["condition"]),
                 "subjects": number(r["subjects"]),
                 "events": number(r["events"]),

@@ -17,11 +17,10 @@ import pandas as pd
 from markupsafe import Markup
 
 from hilrig import __version__
-from hilrig.analysis.report import shown_unit
 from hilrig.errors import OutputError
 from hilrig.replay.specs import ControllerSpec
 from hilrig.study.figures import GROUP_LABELS, GROUP_ORDER
-from hilrig.study.records import STUDY_METRICS, metric_unit
+from hilrig.study.records import STUDY_METRICS, metric_heading, shown_metric_unit
 from hilrig.study.report_html import check_report_path, environment, number, write_html
 from hilrig.sweep.driver import SweepSummary
 from hilrig.sweep.report_figures import LABELS, OVER, Layout, layout, sweep_figure, with_over
@@ -76,17 +75,13 @@ def render(summary: SweepSummary, specs: Sequence[ControllerSpec]) -> str:
 def _group(group: str, rows: pd.DataFrame, subjects: pd.DataFrame, where: Layout) -> dict[str, Any]:
     metrics = [m for m in STUDY_METRICS if rows[m].notna().any()]
     columns = ["run", "subjects", "events", "judged", "over"]
-    headings = [*columns]
-    for metric in metrics:
-        unit, _ = shown_unit(metric_unit(metric, group))
-        headings.append(f"{LABELS[metric]} ({unit})")
-    table = []
-    for record in rows.to_dict("records"):
-        cells = [str(record["run"]), *(number(int(record[c])) for c in columns[1:])]
-        for metric in metrics:
-            _, factor = shown_unit(metric_unit(metric, group))
-            cells.append(number(float(record[metric]) * factor))
-        table.append(cells)
+    headings = [*columns, *(metric_heading(m, group) for m in metrics)]
+    factors = [shown_metric_unit(m, group)[1] for m in metrics]
+    table = [
+        [str(record["run"]), *(number(int(record[c])) for c in columns[1:])]
+        + [number(float(record[m]) * f) for m, f in zip(metrics, factors, strict=True)]
+        for record in rows.to_dict("records")
+    ]
     figure = sweep_figure(group, rows, subjects, where)
     axis = ", run by run" if where.x is None else f" against {where.x}"
     share = f"; {LABELS[OVER]} in % of those judged" if rows[OVER].notna().any() else ""
@@ -116,5 +111,6 @@ def write_sweep_report(
 ) -> Path:
     """Write the HTML report of ``summary`` to ``path``, whole or not at all; an existing file
     is replaced only with ``overwrite`` (OutputError otherwise, before anything is drawn)."""
-    document = lambda: render(summary, specs)  # noqa: E731 - drawn only once the path is checked
-    return write_html(path, document, overwrite=overwrite, flag=OVERWRITE_FLAG)
+    return write_html(
+        path, lambda: render(summary, specs), overwrite=overwrite, flag=OVERWRITE_FLAG
+    )

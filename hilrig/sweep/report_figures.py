@@ -21,10 +21,9 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.ticker import FixedFormatter, FixedLocator, NullLocator
 
-from hilrig.analysis.report import shown_unit
 from hilrig.replay.specs import ControllerSpec, Value
 from hilrig.study.figures import GROUP_LABELS, PALETTE, RC, SvgFigure, finish, new_figure
-from hilrig.study.records import METRIC_LABELS, STUDY_METRICS, metric_unit
+from hilrig.study.records import METRIC_LABELS, STUDY_METRICS, shown_metric_unit
 
 OVER = "over_pct"  # the share of judged events over an ISO/TS 15066 limit, in the figures
 LABELS = METRIC_LABELS | {OVER: "events over a limit"}
@@ -142,7 +141,7 @@ def _panel(
     where: Layout,
     colours: dict[str, str],
 ) -> None:
-    unit, factor = ("%", 1.0) if metric == OVER else shown_unit(metric_unit(metric, group))
+    unit, factor = ("%", 1.0) if metric == OVER else shown_metric_unit(metric, group)
     spread = None if metric == OVER else quartiles(by_subject, metric) * factor
     medians = by_run.set_index("run")[metric] * factor
     runs = list(by_run["run"])
