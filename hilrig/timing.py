@@ -30,6 +30,7 @@ from numba import typeof
 from numpy.typing import NDArray
 
 from hilrig.compiled import njit
+from hilrig.errors import HilrigError
 from hilrig.libc import linux_libc
 
 PR_SET_TIMERSLACK = 29
@@ -68,7 +69,7 @@ def freeze_heap() -> None:
 
 
 @contextmanager
-def realtime_python() -> Iterator[None]:
+def realtime_python(cpu: int | None = None) -> Iterator[None]:
     """Run the body as real-time as CPython allows, and restore everything after.
 
     No cyclic garbage collection (what is alive now is frozen out of it after one collection,
@@ -76,15 +77,16 @@ def realtime_python() -> Iterator[None]:
     a tick; 1 us timer slack for this thread's sleeps (Linux); and SCHED_FIFO for this thread
     where permitted; and every CPU kept out of idle states slower to leave than 0 us while the
     body runs (:func:`cpu_wakeup_latency`, root only; idle spinners where the kernel has no idle
-    driver). A shorter GIL switch interval
-    was measured too (0.2 ms against the default 5 ms) and brought no gain.
+    driver); and this thread on ``cpu`` alone when one is given (:func:`on_cpu`). A shorter GIL
+    switch interval was measured too (0.2 ms against the default 5 ms) and brought no gain.
     """
     enabled = gc.isenabled()
     freeze_heap()
     gc.disable()
     tighten_timer_slack()
     try:
-        with cpu_wakeup_latency():  # first: its spinners must not inherit SCHED_FIFO
+        # first: its spinners must not inherit SCHED_FIFO, nor one CPU (one spinner per CPU)
+        with cpu_wakeup_latency(), on_cpu(cpu):
             policy = raise_priority()
             try:
                 yield
@@ -95,6 +97,38 @@ def realtime_python() -> Iterator[None]:
         gc.unfreeze()
         if enabled:
             gc.enable()
+
+
+@contextmanager
+def on_cpu(cpu: int | None) -> Iterator[None]:
+    """Run the body with this thread on ``cpu`` alone (``None``: wherever the OS puts it), then
+    let it run where it could before. Raises HilrigError (one line) if it may not run there.
+
+    For a CPU kept free for the loop (Linux ``isolcpus``, a cpuset), as ``cyclictest -a`` or
+    ros2_control's ``cpu_affinity`` do. Only this thread moves: processes started from it
+    meanwhile inherit the one CPU, so a session starts its children before."""
+    if cpu is None:
+        yield
+        return
+    previous = os.sched_getaffinity(0)
+    try:
+        os.sched_setaffinity(0, {cpu})
+    except (OSError, ValueError, OverflowError) as err:
+        reason = err.strerror if isinstance(err, OSError) else str(err)
+        runs_on = ", ".join(str(c) for c in sorted(previous))
+        raise HilrigError(
+            f"cpu {cpu}: the loop's thread may not run there ({reason}); it may run on {runs_on}"
+        ) from None
+    try:
+        yield
+    finally:
+        os.sched_setaffinity(0, previous)
+
+
+def check_cpu(cpu: int | None) -> None:
+    """Raise HilrigError (one line) unless this thread may run on ``cpu`` (tried, then undone)."""
+    with on_cpu(cpu):
+        pass
 
 
 @contextmanager

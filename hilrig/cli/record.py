@@ -74,6 +74,14 @@ def record(
     ] = None,
     duration: Annotated[float, typer.Option(help="Seconds; Ctrl-C ends earlier, cleanly.")] = 20.0,
     rate: Annotated[float, typer.Option(help="Loop rate, Hz (the paper used 500).")] = 1000.0,
+    cpu: Annotated[
+        int | None,
+        typer.Option(
+            help="Run the loop's thread on this CPU alone, e.g. a core kept free for it "
+            "(isolcpus); the rig's and recorder's processes stay where the OS puts them. "
+            "Default: the OS places the thread too (docs/rig.md, 'Placing the loop').",
+        ),
+    ] = None,
     out: Annotated[Path | None, typer.Option(help="The MCAP file to write.")] = None,
     view: Annotated[
         bool,
@@ -129,7 +137,11 @@ def record(
         trajectory=settings.trajectory or trajectory,
         trajectory_options=settings.trajectory_options,
         loop=LoopConfig(
-            rate_hz=rate, law=controller.law(), cartesian_params=params, joint_params=joint_params
+            rate_hz=rate,
+            law=controller.law(),
+            cartesian_params=params,
+            joint_params=joint_params,
+            cpu=cpu,
         ),
         session_id=time.strftime("%Y%m%d-%H%M%S"),
         body_region=body_region or "",

@@ -80,17 +80,21 @@ STATUS_EVERY = 10  # ticks between updates of the status line's values
 
 @dataclass(frozen=True)
 class LoopConfig:
-    """What the loop runs: rate (Hz), law and parameters of each axis group, staleness limit."""
+    """What the loop runs: rate (Hz), law and parameters of each axis group, staleness limit,
+    and the CPU its thread runs on alone (None: wherever the OS puts it; docs/rig.md)."""
 
     rate_hz: float = 1000.0
     law: Law = Law.ADAPTIVE
     cartesian_params: ParamsLike = "adaptive"
     joint_params: ParamsLike = "adaptive-joint"
     stale_after_ticks: int = 5
+    cpu: int | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.rate_hz) and 1.0 <= self.rate_hz <= 10_000.0):
             raise HilrigError(f"loop rate {self.rate_hz} Hz is not within 1..10000 Hz")
+        if self.cpu is not None and not (isinstance(self.cpu, int) and self.cpu >= 0):
+            raise HilrigError(f"cpu {self.cpu}: must be a CPU's number, 0 or more")
         object.__setattr__(self, "law", parse_law(self.law))
 
     @property
@@ -195,7 +199,8 @@ class ControlLoop:
         period = self._period_ns
         summary = self.summary
         self._events.mark("loop", "session started at the start pose", time.monotonic_ns())
-        with realtime_python():  # first: its one garbage collection must not delay tick 1
+        # first: its one garbage collection must not delay tick 1
+        with realtime_python(self.config.cpu):
             # what came while the loop started is recorded, not ticked: tick 1 is the next frame
             self._io.pump(time.monotonic_ns())
             now = time.monotonic_ns()

@@ -23,6 +23,7 @@ from hilrig.rig.kinds import RigKind
 from hilrig.rig.loop import LoopConfig
 from hilrig.rig.virtual import VirtualInput
 from hilrig.tick.trajectory import make_trajectory
+from hilrig.timing import check_cpu
 from hilrig.world.body import body_region
 from hilrig.world.scenarios import DEFAULT_BODY_REGION, Scenario
 from hilrig.world.scenarios import scenario as make_scenario
@@ -82,6 +83,7 @@ class SessionConfig:
         if area is not None and not (math.isfinite(area) and area > 0):
             raise HilrigError(f"contact area {area:g} cm^2: must be a finite area > 0")
         check_recording_path(self.out)
+        check_cpu(self.loop.cpu)
 
     def region(self) -> str:
         """The body region the session records: the one given, else the emulated scenario's

@@ -132,6 +132,12 @@ def record(tmp_path: Path, *args: str, **env: str) -> subprocess.CompletedProces
         (["--duration", "0"], "duration 0.0 s: must be a finite number of seconds > 0"),
         (["--rate", "0"], "loop rate 0.0 Hz is not within 1..10000 Hz"),
         (["--rate", "nan"], "loop rate nan Hz is not within 1..10000 Hz"),
+        (["--cpu", "-1"], "cpu -1: must be a CPU's number, 0 or more"),
+        (
+            ["--cpu", "4096"],
+            f"cpu 4096: the loop's thread may not run there (Invalid argument); it may run on "
+            f"{', '.join(str(cpu) for cpu in sorted(os.sched_getaffinity(0)))}",
+        ),
         (
             ["--trajectory", "nope"],
             "unknown trajectory 'nope'; known: circle, square, waypoints, hold",
