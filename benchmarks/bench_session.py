@@ -1,12 +1,17 @@
 """Emulated HIL sessions at 1 kHz with recording on: the loop's timing, measured three ways.
 
 As ``hilrig record`` runs them: the emulated rig in its own process, the recorder in another,
-the loop (its devices' I/O and the compiled tick on one thread) here. Three 60 s sessions:
+the loop (its devices' I/O and the compiled tick on one thread) here. Five 60 s sessions:
 
 - plain;
 - with the live view on (``--view-url``: the recorder forwards its 50 Hz copy to the viewer-feed
   process, which streams it to Rerun's own gRPC server, ``rerun --save``, on loopback);
-- while a busy process burns one of the two cores (a lab PC with a browser or viewer open).
+- while a busy process burns one of the two cores (a lab PC with a browser or viewer open);
+- plain and beside the busy core again, with the kernel's unbound workers (``kworker/u*``,
+  among them the one that hands a serial port's bytes to its reader) under SCHED_FIFO 1 for the
+  session, as an operator's tuning would put them (tuned's scheduler plugin, or ``chrt``):
+  hilrig does not change other threads' priorities itself (docs/rig.md, "Placing the loop").
+  Skipped where not permitted (root or CAP_SYS_NICE).
 
 Reported for each: missed deadlines, tick lateness p50/p99/max, compute per tick p50/p99 (the tick
 but for its send: compiled tick, events, row written), the Modbus request's send call (the
@@ -20,6 +25,7 @@ can win back).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
@@ -56,11 +62,26 @@ def run() -> list[Result]:
         viewed = _session(tmp / "session-live.mcap", live=live)
     with _busy_core():
         loaded = _session(tmp / "session-busy.mcap")
-    return (
+    results = (
         _timing(plain, "", missed_target=0.01)
         + _timing(viewed, " (live view)", missed_target=0.01)
         + _view(viewed)
         + _timing(loaded, " (a busy process on one core)", missed_target=0.1)
+    )
+    with _kernel_workers_at_fifo() as raised:
+        if not raised:
+            return results
+        tuned = _session(tmp / "session-tuned.mcap")
+        with _busy_core():
+            tuned_loaded = _session(tmp / "session-tuned-busy.mcap")
+    return (
+        results
+        + _timing(tuned, " (kernel workers at FIFO 1)", missed_target=0.01)
+        + _timing(
+            tuned_loaded,
+            " (a busy process on one core, kernel workers at FIFO 1)",
+            missed_target=0.1,
+        )
     )
 
 
@@ -114,6 +135,37 @@ def _busy_core() -> Iterator[None]:
     finally:
         busy.kill()
         busy.wait()
+
+
+@contextmanager
+def _kernel_workers_at_fifo() -> Iterator[list[int]]:
+    """The kernel's unbound workers of normal priority (``kworker/u*`` at nice 0) under
+    SCHED_FIFO 1, the lowest real-time priority, for as long as the block runs; yields their
+    pids (none where not permitted). Workers the kernel starts meanwhile keep nice 0."""
+    raised: list[int] = []
+    try:
+        for entry in Path("/proc").iterdir():
+            if not entry.name.isdigit():
+                continue
+            pid = int(entry.name)
+            try:
+                if not (entry / "comm").read_text().startswith("kworker/u"):
+                    continue
+                if os.sched_getscheduler(pid) != os.SCHED_OTHER or os.getpriority(
+                    os.PRIO_PROCESS, pid
+                ):
+                    continue
+                os.sched_setscheduler(pid, os.SCHED_FIFO, os.sched_param(1))
+            except PermissionError:
+                break  # not permitted: none is raised
+            except OSError:  # gone meanwhile
+                continue
+            raised.append(pid)
+        yield raised
+    finally:
+        for pid in raised:
+            with contextlib.suppress(OSError):
+                os.sched_setscheduler(pid, os.SCHED_OTHER, os.sched_param(0))
 
 
 def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[Result]:
