@@ -9,9 +9,9 @@ the loop (its devices' I/O and the compiled tick on one thread) here. Five 60 s 
 - while a busy process burns one of the two cores (a lab PC with a browser or viewer open);
 - plain and beside the busy core again, with the kernel's unbound workers (``kworker/u*``,
   among them the one that hands a serial port's bytes to its reader) under SCHED_FIFO 1 for the
-  session, as an operator's tuning would put them (tuned's scheduler plugin, or ``chrt``):
-  hilrig does not change other threads' priorities itself (docs/rig.md, "Placing the loop").
-  Skipped where not permitted (root or CAP_SYS_NICE).
+  session (those alive as its loop starts), as an operator's tuning would put them (tuned's
+  scheduler plugin, or ``chrt``): hilrig does not change other threads' priorities itself
+  (docs/rig.md, "Placing the loop"). Skipped where not permitted (root or CAP_SYS_NICE).
 
 Reported for each: missed deadlines, tick lateness p50/p99/max, compute per tick p50/p99 (the tick
 but for its send: compiled tick, events, row written), the Modbus request's send call (the
@@ -68,12 +68,12 @@ def run() -> list[Result]:
         + _view(viewed)
         + _timing(loaded, " (a busy process on one core)", missed_target=0.1)
     )
-    with _kernel_workers_at_fifo() as raised:
+    with _kernel_workers_at_fifo() as raised:  # tried and undone at once
         if not raised:
             return results
-        tuned = _session(tmp / "session-tuned.mcap")
-        with _busy_core():
-            tuned_loaded = _session(tmp / "session-tuned-busy.mcap")
+    tuned = _session(tmp / "session-tuned.mcap", tune_workers=True)
+    with _busy_core():
+        tuned_loaded = _session(tmp / "session-tuned-busy.mcap", tune_workers=True)
     return (
         results
         + _timing(tuned, " (kernel workers at FIFO 1)", missed_target=0.01)
@@ -94,8 +94,11 @@ class _Measured:
         self.steal_pct = steal_pct
 
 
-def _session(out: Path, live: LiveView | None = None) -> _Measured:
+def _session(out: Path, live: LiveView | None = None, *, tune_workers: bool = False) -> _Measured:
+    """A session; with ``tune_workers`` the kernel's workers are raised as its loop starts
+    (the ones alive then: the kernel starts and ends them as their work comes and goes)."""
     rigs: list[RigProcess] = []
+    tuning = contextlib.ExitStack()
     cpu: list[tuple[float, float]] = []  # (wall s, rig CPU s) at loop start and near its end
     steal: list[Steal] = []
 
@@ -106,6 +109,8 @@ def _session(out: Path, live: LiveView | None = None) -> _Measured:
         cpu.append((time.monotonic(), (int(fields[11]) + int(fields[12])) / CLOCK_TICKS_S))
 
     def on_start(loop: ControlLoop) -> None:
+        if tune_workers:
+            tuning.enter_context(_kernel_workers_at_fifo())
         sample()
         steal.append(Steal())
 
@@ -115,13 +120,16 @@ def _session(out: Path, live: LiveView | None = None) -> _Measured:
 
         threading.Thread(target=near_the_end, daemon=True).start()
 
-    result = record_session(
-        SessionConfig(out=out, subject_id="B001", scenario="hand-contact", duration_s=DURATION_S),
-        stop=threading.Event(),
-        live=live,
-        on_start=on_start,
-        rig_ready=rigs.append,
-    )
+    with tuning:
+        result = record_session(
+            SessionConfig(
+                out=out, subject_id="B001", scenario="hand-contact", duration_s=DURATION_S
+            ),
+            stop=threading.Event(),
+            live=live,
+            on_start=on_start,
+            rig_ready=rigs.append,
+        )
     (t0, c0), (t1, c1) = cpu[0], cpu[-1]
     return _Measured(result, 100 * (c1 - c0) / (t1 - t0), steal[0].percent())
 
