@@ -93,7 +93,8 @@ class LoopConfig:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.rate_hz) and 1.0 <= self.rate_hz <= 10_000.0):
             raise HilrigError(f"loop rate {self.rate_hz} Hz is not within 1..10000 Hz")
-        if self.cpu is not None and not (isinstance(self.cpu, int) and self.cpu >= 0):
+        cpu = self.cpu
+        if cpu is not None and (isinstance(cpu, bool) or not isinstance(cpu, int) or cpu < 0):
             raise HilrigError(f"cpu {self.cpu}: must be a CPU's number, 0 or more")
         object.__setattr__(self, "law", parse_law(self.law))
 

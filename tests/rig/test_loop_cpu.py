@@ -55,7 +55,7 @@ def test_a_cpu_the_thread_may_not_run_on_is_one_line(cpu: int) -> None:
     assert os.sched_getaffinity(0) == ALLOWED
 
 
-@pytest.mark.parametrize("cpu", [-1, 1.0])
+@pytest.mark.parametrize("cpu", [-1, 1.0, True])
 def test_a_cpu_that_is_no_number_is_refused(cpu: object) -> None:
     with pytest.raises(HilrigError, match=rf"^cpu {cpu}: must be a CPU's number, 0 or more$"):
         LoopConfig(cpu=cpu)  # type: ignore[arg-type]
