@@ -18,47 +18,42 @@ the thread it runs on, nor than the link its samples come through):
   (as the loop) takes them in ``select``: the share delivered more than a period after writing.
 
 Where the OS grants it (root or CAP_SYS_NICE), the waking thread runs SCHED_FIFO like the loop;
-the detail says whether it did.
+the detail says whether it did. The wake-ups and the links are measured by
+:mod:`hilrig.machine.floor`, which ``hilrig doctor`` runs too.
 """
 
 from __future__ import annotations
 
-import contextlib
 import gc
-import os
-import select
 import socket
 import subprocess
 import sys
-import threading
 import time
-import tty
 
 import numpy as np
 
-from benchmarks.harness import Result, Steal, quantiles_us
-from hilrig.timing import realtime_python
+from benchmarks.harness import Result, quantiles_us
+from hilrig.machine.floor import PERIOD_NS, Steal, WakeUps, delivery, pty_delivery, wake_ups
 
-PERIOD_NS = 1_000_000
 WAKE_S = 20.0
 SPIN_S = 10.0
 GAP_NS = 100_000
 LINK_S = 10.0
-WRITER_PRIORITY = 40  # the emulated rig's thread (hilrig/emulator/slots.py)
 
 
 def run() -> list[Result]:
     steal = Steal()
-    idle = _wake_ups()
+    idle = wake_ups(WAKE_S)
     busy_core = subprocess.Popen([sys.executable, "-c", "while True: pass"])
     try:
-        busy = _wake_ups()
+        busy = wake_ups(WAKE_S)
     finally:
         busy_core.kill()
         busy_core.wait()
     gaps = _spin_gaps()
-    links = _delivery_rows("pty", _delivery(*os.openpty(), raw=True))
-    links += _delivery_rows("socket pair", _delivery(*(s.detach() for s in socket.socketpair())))
+    links = _delivery_rows("pty", pty_delivery(LINK_S))
+    pair = socket.socketpair()
+    links += _delivery_rows("socket pair", delivery(pair[0].detach(), pair[1].detach(), LINK_S))
     stolen = Result("machine", "hypervisor steal over the suite", steal.percent(), "% of CPU time")
     return (
         _wake_rows(idle, "")
@@ -67,46 +62,6 @@ def run() -> list[Result]:
         + links
         + [stolen]
     )
-
-
-def _delivery(write_fd: int, read_fd: int, *, raw: bool = False) -> np.ndarray:
-    """Write-to-read delay (ns) of 4-byte messages sent every period from another thread."""
-    if raw:
-        tty.setraw(read_fd)
-    count = round(LINK_S * 1e9 / PERIOD_NS)
-    sent = np.zeros(count, dtype=np.int64)
-    delay = np.zeros(count, dtype=np.int64)
-
-    def write() -> None:
-        with contextlib.suppress(OSError):  # not permitted: normal priority
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(WRITER_PRIORITY))
-        deadline = time.monotonic_ns() + PERIOD_NS
-        for i in range(count):
-            remaining = deadline - time.monotonic_ns()
-            if remaining > 0:
-                time.sleep(remaining / 1e9)
-            sent[i] = time.monotonic_ns()
-            os.write(write_fd, i.to_bytes(4, "little"))
-            deadline += PERIOD_NS
-
-    writer = threading.Thread(target=write)
-    received, pending = 0, b""
-    try:
-        with realtime_python():
-            writer.start()
-            while received < count:
-                select.select([read_fd], [], [], 1.0)
-                now = time.monotonic_ns()
-                pending += os.read(read_fd, 4096)
-                while len(pending) >= 4:
-                    i = int.from_bytes(pending[:4], "little")
-                    delay[i] = now - sent[i]
-                    pending, received = pending[4:], received + 1
-    finally:
-        writer.join()
-        os.close(write_fd)
-        os.close(read_fd)
-    return delay
 
 
 def _delivery_rows(link: str, delay_ns: np.ndarray) -> list[Result]:
@@ -120,32 +75,8 @@ def _delivery_rows(link: str, delay_ns: np.ndarray) -> list[Result]:
     ]
 
 
-def _wake_ups() -> tuple[np.ndarray, np.ndarray, bool]:
-    """Lateness (ns) of each wake-up of a thread sleeping to deadlines one period apart, the
-    time (ns) of the fixed work it does after each, and whether the thread ran SCHED_FIFO."""
-    count = round(WAKE_S * 1e9 / PERIOD_NS)
-    late = np.zeros(count, dtype=np.int64)
-    work = np.zeros(count, dtype=np.int64)
-    matrix, vector = np.eye(6) * 0.999, np.ones(6)
-    with realtime_python():
-        fifo = os.sched_getscheduler(0) == os.SCHED_FIFO
-        deadline = time.monotonic_ns() + PERIOD_NS
-        for i in range(count):
-            remaining = deadline - time.monotonic_ns()
-            if remaining > 0:
-                time.sleep(remaining / 1e9)
-            woke = time.monotonic_ns()
-            late[i] = woke - deadline
-            product = vector
-            for _ in range(16):
-                product = matrix @ product
-            work[i] = time.monotonic_ns() - woke
-            deadline += PERIOD_NS
-    return late, work, fifo
-
-
-def _wake_rows(measured: tuple[np.ndarray, np.ndarray, bool], variant: str) -> list[Result]:
-    late_ns, work_ns, fifo = measured
+def _wake_rows(measured: WakeUps, variant: str) -> list[Result]:
+    late_ns, work_ns, fifo = measured.late_ns, measured.work_ns, measured.sched_fifo
     q = quantiles_us(late_ns)
     w = quantiles_us(work_ns)
     over_pct = 100 * float(np.count_nonzero(late_ns > PERIOD_NS)) / len(late_ns)

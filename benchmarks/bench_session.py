@@ -37,7 +37,8 @@ from contextlib import contextmanager
 from dataclasses import asdict
 from pathlib import Path
 
-from benchmarks.harness import Result, Steal
+from benchmarks.harness import Result
+from hilrig.machine import Steal
 from hilrig.rig import ControlLoop, RigProcess, SessionConfig, SessionResult, record_session
 from hilrig.robot import aubo_i5_urdf
 from hilrig.viz.live import LiveView

@@ -1,0 +1,16 @@
+"""The machine under the loop: its settings that bear on a 1 kHz loop (:func:`read_settings`)
+and its measured timing floor (:func:`measure_floor`), as ``hilrig doctor`` reports them."""
+
+from hilrig.machine.floor import Floor, Steal, Timing, WakeUps, measure_floor, timing
+from hilrig.machine.settings import Setting, read_settings
+
+__all__ = [
+    "Floor",
+    "Setting",
+    "Steal",
+    "Timing",
+    "WakeUps",
+    "measure_floor",
+    "read_settings",
+    "timing",
+]
