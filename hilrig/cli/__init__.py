@@ -18,6 +18,7 @@ from typer.main import get_command
 from hilrig.cli import (  # noqa: F401  (register their commands)
     analyze,
     demo,
+    doctor,
     paper,
     record,
     recording,
