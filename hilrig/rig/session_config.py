@@ -1,6 +1,6 @@
 """A session's configuration: who, what, how long, where; checked before anything starts, and
 attached to its recording as ``config.json`` (file names only: no folder, which may hold a
-person's name)."""
+person's name), beside the machine's settings (``machine.json``)."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ import numpy as np
 from hilrig.drivers.ft.gravity import ToolLoad
 from hilrig.emulator.rig import RigEndpoints
 from hilrig.errors import HilrigError
+from hilrig.machine import read_settings
 from hilrig.recording import Attachment, validate_subject_id
 from hilrig.rig.config_file import check_recording_path
 from hilrig.rig.kinds import RigKind
@@ -125,6 +126,14 @@ class SessionConfig:
 
     def session_id_or_now(self) -> str:
         return self.session_id or time.strftime("%Y%m%d-%H%M%S")
+
+
+def machine_attachment() -> Attachment:
+    """The machine's settings that bear on the loop (as ``hilrig doctor`` reads them: name,
+    value, verdict, note), attached as ``machine.json``: what a session's timing figures are to
+    be read against, later and elsewhere."""
+    settings = [asdict(setting) for setting in read_settings()]
+    return Attachment("machine.json", "application/json", json.dumps(settings, indent=2).encode())
 
 
 def without_folders(text: str) -> str:

@@ -1,10 +1,12 @@
 """Recorded emulated sessions, end to end, checked through the recording itself."""
 
+import json
 import os
 import signal
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +14,7 @@ import pytest
 
 from hilrig.control import combine, preset, simulate
 from hilrig.errors import HilrigError
+from hilrig.machine import read_settings
 from hilrig.recording import inspect, load, recover
 from hilrig.recording.samples import EventKind
 from hilrig.rig import (
@@ -222,6 +225,22 @@ def test_no_folder_of_the_output_is_stored_in_the_file(collision: SessionResult)
         ]
     assert texts and not [t for t in texts if folder in t or home + b"/" in t]
     assert folder not in collision.path.read_bytes()
+
+
+def test_the_machine_s_settings_are_attached_as_doctor_reads_them(
+    collision: SessionResult,
+) -> None:
+    from mcap.reader import make_reader
+
+    with collision.path.open("rb") as stream:
+        attached = {a.name: a for a in make_reader(stream).iter_attachments()}
+    machine = attached["machine.json"]
+    assert machine.media_type == "application/json"
+    settings = json.loads(machine.data)
+    now = [asdict(s) for s in read_settings()]
+    assert [s["name"] for s in settings] == [s["name"] for s in now]
+    realtime = [s for s in settings if s["name"] == "real-time scheduling"]
+    assert realtime == [s for s in now if s["name"] == "real-time scheduling"]
 
 
 def test_a_virtual_collision_s_source_keeps_only_its_file_name(tmp_path: Path) -> None:
