@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict
+from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
@@ -33,6 +34,13 @@ def doctor(
         int | None,
         typer.Option(help="Wake the test thread on this CPU alone, as hilrig record --cpu."),
     ] = None,
+    port: Annotated[
+        Path | None,
+        typer.Option(
+            help="The wrist F/T sensor's serial port to check too (a real rig's ft_wrist_port, "
+            "e.g. /dev/ttyUSB0): access, driver, a USB adapter's latency timer."
+        ),
+    ] = None,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print one JSON document instead of the tables.")
     ] = False,
@@ -42,7 +50,8 @@ def doctor(
 
     The settings (real-time scheduling, idle states, the kernel's preemption model, isolated
     CPUs, real-time throttling, the kernel's unbound workers, clock source, CPU frequency, a
-    hypervisor) each get ok, warn (with what to change) or note. Then a bare thread under the
+    hypervisor; with --port, the sensor's serial port) each get ok, warn (with what to change)
+    or note. Then a bare thread under the
     loop's settings wakes every 1 ms, and 1 kHz messages pass through a pty as the F/T sensor's
     do: what they lose, a session here loses too (docs/rig.md). Waits while a session runs.
     """
@@ -53,7 +62,7 @@ def doctor(
 
     from hilrig.cli.errors import print_waiting
     from hilrig.errors import HilrigError
-    from hilrig.machine import measure_floor, read_settings
+    from hilrig.machine import measure_floor, port_settings, read_settings
     from hilrig.rig.machine_lock import one_session_at_a_time
     from hilrig.timing import check_cpu
 
@@ -64,6 +73,8 @@ def doctor(
     check_cpu(cpu)
     console = Console(highlight=False)
     settings = read_settings()
+    if port is not None:
+        settings += port_settings(port)
     if not as_json:
         _print_settings(console, settings)
     floor = None

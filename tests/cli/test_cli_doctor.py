@@ -59,6 +59,25 @@ def test_json_has_every_setting_and_the_floor_counted() -> None:
     )
 
 
+def test_a_port_is_checked_after_the_machine() -> None:
+    parent, child = os.openpty()
+    try:
+        port = os.ttyname(child)
+        result = doctor("--seconds", "0", "--json", "--port", port)
+    finally:
+        os.close(parent)
+        os.close(child)
+    assert (result.returncode, result.stderr) == (0, "")
+    settings = json.loads(result.stdout)["settings"]
+    assert [s["name"] for s in settings] == [
+        *SETTING_NAMES,
+        "F/T port",
+        "F/T port access",
+        "F/T port driver",
+    ]
+    assert settings[-3]["value"] == port
+
+
 def test_zero_seconds_reads_the_settings_only() -> None:
     result = doctor("--seconds", "0", "--json")
     assert result.returncode == 0
