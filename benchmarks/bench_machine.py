@@ -1,7 +1,9 @@
 """The machine's own timing floor: what no 1 kHz loop on it can beat, measured without hilrig.
 
-Three calibration figures, read beside the session suite's (a loop cannot be more punctual than
-the thread it runs on, nor than the link its samples come through):
+The machine's settings that cost deadlines (those ``hilrig doctor`` warns of, counted; every
+setting in the detail), then calibration figures, read beside the session suite's (a loop
+cannot be more punctual than the thread it runs on, nor than the link its samples come
+through):
 
 - **wake-up lateness**: a bare thread (no GC, 1 us timer slack, as the loop runs) sleeps to
   absolute deadlines 1 ms apart, idle and with a busy process burning one core; the share of
@@ -29,10 +31,12 @@ import socket
 import subprocess
 import sys
 import time
+from dataclasses import asdict
 
 import numpy as np
 
 from benchmarks.harness import Result, quantiles_us
+from hilrig.machine import read_settings
 from hilrig.machine.floor import PERIOD_NS, Steal, WakeUps, delivery, pty_delivery, wake_ups
 
 WAKE_S = 20.0
@@ -55,13 +59,23 @@ def run() -> list[Result]:
     pair = socket.socketpair()
     links += _delivery_rows("socket pair", delivery(pair[0].detach(), pair[1].detach(), LINK_S))
     stolen = Result("machine", "hypervisor steal over the suite", steal.percent(), "% of CPU time")
-    return (
-        _wake_rows(idle, "")
-        + _wake_rows(busy, " (a busy process on one core)")
-        + gaps
-        + links
-        + [stolen]
-    )
+    return [
+        _settings_row(),
+        *_wake_rows(idle, ""),
+        *_wake_rows(busy, " (a busy process on one core)"),
+        *gaps,
+        *links,
+        stolen,
+    ]
+
+
+def _settings_row() -> Result:
+    """How many of the machine's settings ``hilrig doctor`` warns of; all of them in the detail."""
+    settings = read_settings()
+    warned = [s.name for s in settings if s.verdict == "warn"]
+    detail = {"warn": warned, "settings": [asdict(s) for s in settings]}
+    name = "settings that cost deadlines (hilrig doctor's warnings)"
+    return Result("machine", name, len(warned), "settings", detail=detail)
 
 
 def _delivery_rows(link: str, delay_ns: np.ndarray) -> list[Result]:
