@@ -52,7 +52,7 @@ from hilrig.rig.recorder_feed import RecorderFeed
 from hilrig.rig.recorder_process import RecorderProcess
 from hilrig.rig.records import AXIS_NAMES
 from hilrig.rig.rig_process import RigCounters, RigProcess
-from hilrig.rig.session_config import SessionConfig, machine_attachment
+from hilrig.rig.session_config import SessionConfig
 from hilrig.rig.warm_up import warm_up
 from hilrig.robot import RobotModel
 from hilrig.tick.safety import SafetyClamp, SafetyConfig
@@ -135,7 +135,7 @@ def record_session(
             config.out,
             feed=feed,
             urdf=model.urdf_xml,
-            attachments=[*config.attachments(), machine_attachment()],
+            attachments=config.attachments(),
             controller=config.loop.law.value,
             axis_names=AXIS_NAMES,
             view=None if live is None else live.queue,

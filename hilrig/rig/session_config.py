@@ -17,7 +17,7 @@ import numpy as np
 from hilrig.drivers.ft.gravity import ToolLoad
 from hilrig.emulator.rig import RigEndpoints
 from hilrig.errors import HilrigError
-from hilrig.machine import read_settings
+from hilrig.machine import port_settings, read_settings
 from hilrig.recording import Attachment, validate_subject_id
 from hilrig.rig.config_file import check_recording_path
 from hilrig.rig.kinds import RigKind
@@ -113,10 +113,12 @@ class SessionConfig:
         return json.dumps(record, indent=2, default=str, sort_keys=True)
 
     def attachments(self) -> list[Attachment]:
-        """The config (JSON), the scenario name and, when one plays, the virtual trace (.npy)."""
+        """The config (JSON), the scenario name, the machine's settings (JSON) and, when one
+        plays, the virtual trace (.npy)."""
         files = [
             Attachment("config.json", "application/json", self.as_json().encode()),
             Attachment("scenario.txt", "text/plain", self.scenario.encode()),
+            Attachment("machine.json", "application/json", self.machine_json().encode()),
         ]
         if self.virtual is not None:
             buffer = io.BytesIO()
@@ -124,16 +126,18 @@ class SessionConfig:
             files.append(Attachment("virtual_input.npy", "application/x-npy", buffer.getvalue()))
         return files
 
+    def machine_json(self) -> str:
+        """The machine's settings that bear on the loop as ``hilrig doctor`` reads them now
+        (name, value, verdict, note), and a real rig's F/T port's: what the session's timing
+        figures are to be read against, later and elsewhere. Values keep file names only."""
+        settings = read_settings()
+        if self.rig is RigKind.AUBO and self.endpoints is not None:
+            settings += port_settings(Path(self.endpoints.ft_wrist_port))
+        records = [asdict(replace(s, value=without_folders(s.value))) for s in settings]
+        return json.dumps(records, indent=2)
+
     def session_id_or_now(self) -> str:
         return self.session_id or time.strftime("%Y%m%d-%H%M%S")
-
-
-def machine_attachment() -> Attachment:
-    """The machine's settings that bear on the loop (as ``hilrig doctor`` reads them: name,
-    value, verdict, note), attached as ``machine.json``: what a session's timing figures are to
-    be read against, later and elsewhere."""
-    settings = [asdict(setting) for setting in read_settings()]
-    return Attachment("machine.json", "application/json", json.dumps(settings, indent=2).encode())
 
 
 def without_folders(text: str) -> str:

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from hilrig.control import combine, preset, simulate
+from hilrig.emulator.rig import RigEndpoints
 from hilrig.errors import HilrigError
 from hilrig.machine import read_settings
 from hilrig.recording import inspect, load, recover
@@ -241,6 +242,29 @@ def test_the_machine_s_settings_are_attached_as_doctor_reads_them(
     assert [s["name"] for s in settings] == [s["name"] for s in now]
     realtime = [s for s in settings if s["name"] == "real-time scheduling"]
     assert realtime == [s for s in now if s["name"] == "real-time scheduling"]
+
+
+def test_a_real_rig_s_machine_settings_name_its_sensor_port_by_its_file_name(
+    tmp_path: Path,
+) -> None:
+    parent, child = os.openpty()
+    try:
+        port = os.ttyname(child)
+        config = SessionConfig(
+            out=tmp_path / "s.mcap",
+            subject_id="S001",
+            rig="aubo",
+            endpoints=RigEndpoints(port, ("127.0.0.1", 8002), ("127.0.0.1", 502)),
+        )
+        settings = json.loads(config.machine_json())
+    finally:
+        os.close(parent)
+        os.close(child)
+    assert [s["name"] for s in settings][-3:] == ["F/T port", "F/T port access", "F/T port driver"]
+    assert settings[-3]["value"] == Path(port).name
+    emulated = SessionConfig(out=tmp_path / "e.mcap", subject_id="S001")
+    names = [s["name"] for s in json.loads(emulated.machine_json())]
+    assert not [name for name in names if name.startswith("F/T port")]
 
 
 def test_a_virtual_collision_s_source_keeps_only_its_file_name(tmp_path: Path) -> None:
