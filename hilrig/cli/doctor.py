@@ -42,7 +42,7 @@ def doctor(
         ),
     ] = None,
     as_json: Annotated[
-        bool, typer.Option("--json", help="Print one JSON document instead of the tables.")
+        bool, typer.Option("--json", help="Print one JSON document instead of the report.")
     ] = False,
 ) -> None:
     """Check this machine for the 1 kHz loop: its settings that cost deadlines and its own
@@ -51,9 +51,9 @@ def doctor(
     The settings (real-time scheduling, idle states, the kernel's preemption model, isolated
     CPUs, real-time throttling, the kernel's unbound workers, clock source, CPU frequency, a
     hypervisor; with --port, the sensor's serial port) each get ok, warn (with what to change)
-    or note. Then a bare thread under the
-    loop's settings wakes every 1 ms, and 1 kHz messages pass through a pty as the F/T sensor's
-    do: what they lose, a session here loses too (docs/rig.md). Waits while a session runs.
+    or note. Then a bare thread under the loop's settings wakes every 1 ms, and 1 kHz messages
+    pass through a pty as the F/T sensor's do: what they lose, a session here loses too
+    (docs/rig.md). Waits while a session runs.
     """
     import json
     import threading
