@@ -21,6 +21,14 @@ from hilrig.timing import CPU_LATENCY_DEVICE, REALTIME_PRIORITY, realtime_permit
 
 Verdict = Literal["ok", "warn", "note"]
 SYSTEM = Path("/")
+#: The settings whose warning ``hilrig record`` repeats before a session: a loop at normal
+#: priority, CPUs let into slow idle states, a sensor port that holds bytes or may not be read.
+SESSION_WARNINGS = (
+    "real-time scheduling",
+    "idle states",
+    "F/T port access",
+    "F/T port latency timer",
+)
 SCHED_FIFO, SCHED_RR = 1, 2  # the policy numbers in /proc/PID/stat
 CLOCKS_OK = ("tsc", "arch_sys_counter", "kvm-clock", "hyperv_clocksource_tsc_page")
 PREEMPT_CONFIG = {  # the kernel's build-time default model, by its config option

@@ -17,7 +17,7 @@ import numpy as np
 from hilrig.drivers.ft.gravity import ToolLoad
 from hilrig.emulator.rig import RigEndpoints
 from hilrig.errors import HilrigError
-from hilrig.machine import port_settings, read_settings
+from hilrig.machine import Setting, port_settings, read_settings
 from hilrig.recording import Attachment, validate_subject_id
 from hilrig.rig.config_file import check_recording_path
 from hilrig.rig.kinds import RigKind
@@ -126,14 +126,20 @@ class SessionConfig:
             files.append(Attachment("virtual_input.npy", "application/x-npy", buffer.getvalue()))
         return files
 
-    def machine_json(self) -> str:
-        """The machine's settings that bear on the loop as ``hilrig doctor`` reads them now
-        (name, value, verdict, note), and a real rig's F/T port's: what the session's timing
-        figures are to be read against, later and elsewhere. Values keep file names only."""
+    def machine_settings(self) -> list[Setting]:
+        """The machine's settings that bear on the loop as ``hilrig doctor`` reads them now,
+        and a real rig's F/T port's."""
         settings = read_settings()
         if self.rig is RigKind.AUBO and self.endpoints is not None:
             settings += port_settings(Path(self.endpoints.ft_wrist_port))
-        records = [asdict(replace(s, value=without_folders(s.value))) for s in settings]
+        return settings
+
+    def machine_json(self) -> str:
+        """:meth:`machine_settings` as JSON (name, value, verdict, note; values keep file names
+        only): what the session's timing figures are to be read against, later and elsewhere."""
+        records = [
+            asdict(replace(s, value=without_folders(s.value))) for s in self.machine_settings()
+        ]
         return json.dumps(records, indent=2)
 
     def session_id_or_now(self) -> str:

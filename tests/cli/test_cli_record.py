@@ -3,6 +3,7 @@ view options."""
 
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -321,3 +322,36 @@ def test_ctrl_c_while_waiting_for_the_machine_is_an_interrupt_that_records_nothi
     assert stderr == f"interrupted: {STOPPED}\n"
     assert stdout == ""
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(
+    shutil.which("setpriv") is None or os.geteuid() != 0, reason="needs setpriv and root"
+)
+def test_a_loop_refused_real_time_is_said_before_the_session_which_runs(tmp_path: Path) -> None:
+    no_nice = ["setpriv", "--bounding-set=-sys_nice", "--inh-caps=-sys_nice"]
+    result = subprocess.run(
+        [
+            *no_nice,
+            str(HILRIG),
+            "record",
+            "--subject",
+            "S003",
+            "--duration",
+            "1",
+            "--out",
+            "s.mcap",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        cwd=tmp_path,
+    )
+    assert result.returncode == 0, result.stderr
+    warnings = [line for line in result.stderr.splitlines() if line.startswith("warning: ")]
+    assert warnings == [
+        "warning: real-time scheduling: refused - the loop runs at normal priority, behind any "
+        "busy process: it needs CAP_SYS_NICE (root has it) or an rtprio limit (limits.conf) "
+        "(hilrig doctor)"
+    ]
+    outcome = inspect(tmp_path / "s.mcap").outcome
+    assert outcome is not None and outcome.ticks > 0
