@@ -40,14 +40,20 @@ def doctor(*args: str, prefix: tuple[str, ...] = ()) -> subprocess.CompletedProc
         [*prefix, str(HILRIG), "doctor", *args],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=900,  # with the wait for the machine's other sessions (make test beside another)
         env=WIDE,
     )
 
 
+def complaints(stderr: str) -> list[str]:
+    """``stderr``'s lines but for its saying that it waits for a session (``make test`` beside
+    another runs sessions)."""
+    return [line for line in stderr.splitlines() if line != f"waiting: {WAITING}"]
+
+
 def test_json_has_every_setting_and_the_floor_counted() -> None:
     result = doctor("--seconds", "0.3", "--json")
-    assert (result.returncode, result.stderr) == (0, "")
+    assert (result.returncode, complaints(result.stderr)) == (0, [])
     document: dict[str, Any] = json.loads(result.stdout)
     assert [s["name"] for s in document["settings"]] == SETTING_NAMES
     assert {s["verdict"] for s in document["settings"]} <= {"ok", "warn", "note"}
@@ -67,7 +73,7 @@ def test_a_port_is_checked_after_the_machine() -> None:
     finally:
         os.close(parent)
         os.close(child)
-    assert (result.returncode, result.stderr) == (0, "")
+    assert (result.returncode, complaints(result.stderr)) == (0, [])
     settings = json.loads(result.stdout)["settings"]
     assert [s["name"] for s in settings] == [
         *SETTING_NAMES,
@@ -86,7 +92,7 @@ def test_zero_seconds_reads_the_settings_only() -> None:
 
 def test_the_report_names_each_setting_and_the_floor() -> None:
     result = doctor("--seconds", "0.2", "--cpu", str(ALLOWED[0]))
-    assert (result.returncode, result.stderr) == (0, "")
+    assert (result.returncode, complaints(result.stderr)) == (0, [])
     lines = result.stdout.splitlines()
     assert lines[0] == "settings"
     shown = [line.split(":")[0].split(maxsplit=1)[1] for line in lines[1:11]]
@@ -157,7 +163,7 @@ def test_a_running_session_is_waited_for() -> None:
         assert process.stderr is not None
         assert process.stderr.readline() == f"waiting: {WAITING}\n"  # nothing measured yet
         release.set()
-        out, err = process.communicate(timeout=120)
+        out, err = process.communicate(timeout=900)
     finally:
         release.set()
         holder.join()
