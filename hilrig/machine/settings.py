@@ -75,8 +75,10 @@ def _read(root: Path, path: str) -> str | None:
 
 
 def _cpus(root: Path) -> Setting:
-    online = _read(root, "sys/devices/system/cpu/online") or "?"
-    count = _count_cpus(online)
+    online = _read(root, "sys/devices/system/cpu/online")
+    count = 0 if online is None else _count_cpus(online)
+    if online is None or count == 0:
+        return Setting("CPUs", "unknown", "note", "not readable here")
     if count == 1:
         return Setting(
             "CPUs", online, "warn", "one CPU: the loop, the rig and the recorder share it"
@@ -117,7 +119,11 @@ def _realtime(root: Path) -> Setting:
 def _idle(root: Path) -> Setting:
     name = "idle states"
     driver = _read(root, "sys/devices/system/cpu/cpuidle/current_driver") or "none"
-    request = root == SYSTEM and _may_write(CPU_LATENCY_DEVICE)
+    if root != SYSTEM:
+        return Setting(
+            name, driver, "note", "whether idle CPUs may be held awake is tried only here"
+        )
+    request = _may_write(CPU_LATENCY_DEVICE)
     if driver == "none":
         if request:
             return Setting(
