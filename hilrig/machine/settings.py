@@ -3,8 +3,8 @@
 Each :class:`Setting` is one fact, a verdict and a one-line note: ``ok``, ``warn`` (it costs
 deadlines; the note says what to change) or ``note`` (worth knowing, nothing to change). The
 files are read under ``root`` (``/`` for this machine; a copy of another machine's /proc and /sys
-reads as that machine, but for the real-time scheduling, which is tried here). Why each matters,
-measured: docs/rig.md.
+reads as that machine, but for what is tried rather than read: real-time scheduling, and whether
+idle CPUs may be held awake). Why each matters, measured: docs/rig.md.
 """
 
 from __future__ import annotations
@@ -29,7 +29,8 @@ SESSION_WARNINGS = (
     "F/T port access",
     "F/T port latency timer",
 )
-SCHED_FIFO, SCHED_RR = 1, 2  # the policy numbers in /proc/PID/stat
+SCHED_FIFO, SCHED_RR = "1", "2"  # the policy numbers in /proc/PID/stat
+KTHREADD_PID = "2"  # the parent of every kernel thread
 CLOCKS_OK = ("tsc", "arch_sys_counter", "kvm-clock", "hyperv_clocksource_tsc_page")
 PREEMPT_CONFIG = {  # the kernel's build-time default model, by its config option
     "CONFIG_PREEMPT_RT": "rt",
@@ -105,7 +106,7 @@ def _realtime(root: Path) -> Setting:
             name,
             "granted",
             "ok",
-            f"the loop's thread runs SCHED_FIFO {REALTIME_PRIORITY}, the emulated rig's 40",
+            f"the loop's thread runs under SCHED_FIFO {REALTIME_PRIORITY}",
         )
     return Setting(
         name,
@@ -219,7 +220,10 @@ def _throttling(root: Path) -> Setting:
         return Setting(name, "unknown", "note", "not readable here")
     if runtime == "-1":
         return Setting(name, "off", "note", "a runaway real-time thread could hold a CPU for good")
-    share = 100 * int(runtime) / int(period)
+    try:
+        share = 100 * int(runtime) / int(period)
+    except (ValueError, ZeroDivisionError):
+        return Setting(name, "unknown", "note", f"unreadable: {runtime} of {period} us")
     verdict: Verdict = "ok" if share >= 50 else "warn"
     return Setting(
         name, f"{share:g} %", verdict, f"real-time threads may take {share:g} % of a CPU"
@@ -234,8 +238,10 @@ def _kernel_workers(root: Path) -> Setting:
         if text is None or "(kworker/u" not in text:
             continue
         fields = text.rsplit(")", 1)[1].split()  # fields[0] is the stat file's field 3
+        if len(fields) < 39 or fields[1] != KTHREADD_PID:  # not the kernel's (a name is free)
+            continue
         total += 1
-        raised += int(fields[38]) in (SCHED_FIFO, SCHED_RR)
+        raised += fields[38] in (SCHED_FIFO, SCHED_RR)
     if total == 0:
         return Setting(name, "none seen", "note", "not readable here")
     if raised:
@@ -257,7 +263,10 @@ def _clock(root: Path) -> Setting:
     if clock in CLOCKS_OK:
         return Setting(name, clock, "ok", "read in user space, in well under a microsecond")
     return Setting(
-        name, clock, "warn", "each clock read enters the kernel; the loop reads it ~10 times a tick"
+        name,
+        clock,
+        "warn",
+        "each clock read enters the kernel, and the loop reads the clock several times a tick",
     )
 
 

@@ -49,9 +49,10 @@ def setting(root: Path, name: str) -> Setting:
     return found[0]
 
 
-def stat_line(pid: int, comm: str, policy: int, priority: int = 0) -> str:
-    """A /proc/PID/stat line: fields 3.. after ``(comm)``; field 40 rt_priority, 41 policy."""
-    fields = ["S"] + ["0"] * 36 + [str(priority), str(policy)] + ["0"] * 11
+def stat_line(pid: int, comm: str, policy: int, priority: int = 0, parent: int = 2) -> str:
+    """A /proc/PID/stat line: fields 3.. after ``(comm)``; field 4 the parent's pid (2 for a
+    kernel thread), 40 rt_priority, 41 policy."""
+    fields = ["S", str(parent)] + ["0"] * 35 + [str(priority), str(policy)] + ["0"] * 11
     return f"{pid} ({comm}) " + " ".join(fields)
 
 
@@ -139,7 +140,12 @@ def test_isolated_cpus(tmp_path: Path, isolated: str, verdict: str, note_end: st
 
 @pytest.mark.parametrize(
     ("runtime", "value", "verdict"),
-    [("950000", "95 %", "ok"), ("400000", "40 %", "warn"), ("-1", "off", "note")],
+    [
+        ("950000", "95 %", "ok"),
+        ("400000", "40 %", "warn"),
+        ("-1", "off", "note"),
+        ("lots", "unknown", "note"),
+    ],
 )
 def test_realtime_throttling(tmp_path: Path, runtime: str, value: str, verdict: str) -> None:
     root = machine(
@@ -165,6 +171,8 @@ def test_kernel_workers_by_their_policy(
         for i, policy in enumerate(policies)
     }
     files["proc/7/stat"] = stat_line(7, "kworker/0:1H", 1, 1)  # a bound worker: not counted
+    files["proc/8/stat"] = stat_line(8, "kworker/u9:9", 1, 1, parent=1)  # a user's process
+    files["proc/9/stat"] = "9 (kworker/u1:1) S 2 0"  # cut short: not counted
     found = setting(machine(tmp_path, files), "kernel's unbound workers")
     assert (found.value, found.verdict) == (value, verdict)
 
