@@ -107,8 +107,7 @@ def delivery(
     count = max(1, round(seconds * 1e9 / period_ns))
     sent = np.zeros(count, dtype=np.int64)
     delay = np.zeros(count, dtype=np.int64)
-
-    failed: list[str] = []
+    failed: list[str] = []  # why the writer stopped early
 
     def write() -> None:
         with contextlib.suppress(OSError):  # not permitted: normal priority
