@@ -15,24 +15,14 @@ from typing import Any
 
 import pytest
 
+from hilrig.machine import read_settings
 from hilrig.rig.machine_lock import WAITING, one_session_at_a_time
 
 HILRIG = Path(sys.executable).with_name("hilrig")
 ALLOWED = sorted(os.sched_getaffinity(0))
 RUNS_ON = ", ".join(map(str, ALLOWED))
 WIDE = {**os.environ, "COLUMNS": "400"}
-SETTING_NAMES = [
-    "CPUs",
-    "real-time scheduling",
-    "idle states",
-    "kernel preemption",
-    "isolated CPUs",
-    "real-time throttling",
-    "kernel's unbound workers",
-    "clock source",
-    "CPU frequency",
-    "virtual machine",
-]
+SETTING_NAMES = [s.name for s in read_settings()]  # the library's (tests/machine checks it)
 
 
 def doctor(*args: str, prefix: tuple[str, ...] = ()) -> subprocess.CompletedProcess[str]:

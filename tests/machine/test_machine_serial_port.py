@@ -6,14 +6,12 @@ from __future__ import annotations
 import grp
 import os
 import stat
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
 from hilrig.machine import Setting, port_settings
-
-NOBODY = 65534  # the user and group ids of nobody
 
 
 @pytest.fixture
@@ -60,23 +58,11 @@ def test_a_link_to_the_port_is_shown_with_where_it_leads(tmp_path: Path, pty_pat
     assert port_settings(link)[0].value == f"{link} -> {pty_path}"
 
 
-@pytest.mark.skipif(os.geteuid() != 0, reason="needs root, to become another user")
-def test_another_user_is_told_which_group_to_join(pty_path: Path) -> None:
+def test_another_user_is_told_which_group_to_join(
+    pty_path: Path, as_nobody: Callable[[Callable[[], object]], str]
+) -> None:
     group = grp.getgrgid(os.stat(pty_path).st_gid).gr_name
-    read_end, write_end = os.pipe()
-    child = os.fork()
-    if child == 0:  # the check as user nobody, in a child (the module is loaded already)
-        try:
-            os.setgroups([])
-            os.setgid(NOBODY)
-            os.setuid(NOBODY)
-            os.write(write_end, repr(port_settings(pty_path)[1]).encode())
-        finally:
-            os._exit(0)
-    os.close(write_end)
-    with os.fdopen(read_end) as answer:
-        seen = answer.read()
-    assert os.waitpid(child, 0)[1] == 0
+    seen = as_nobody(lambda: port_settings(pty_path)[1])
     expected = Setting(
         "F/T port access",
         "refused",

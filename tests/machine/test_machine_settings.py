@@ -7,6 +7,7 @@ import gzip
 import os
 import re
 import threading
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -14,8 +15,6 @@ import pytest
 from hilrig.machine import Setting, read_settings
 from hilrig.machine.settings import SYSTEM
 from hilrig.timing import CPU_LATENCY_DEVICE
-
-NOBODY = 65534  # the user and group ids of nobody
 
 NAMES = [
     "CPUs",
@@ -241,26 +240,14 @@ def test_this_machine_answers_as_its_kernel_does() -> None:
     assert workers.verdict == ("ok" if raised else "warn")
 
 
-@pytest.mark.skipif(os.geteuid() != 0, reason="needs root, to become another user")
-def test_another_user_may_not_hold_idle_cpus_awake() -> None:
+def test_another_user_may_not_hold_idle_cpus_awake(
+    as_nobody: Callable[[Callable[[], object]], str],
+) -> None:
     """Checked for real: /dev/cpu_dma_latency is root's alone; a child as user nobody reads
     the settings (the module is loaded already) and says so."""
     if not Path(CPU_LATENCY_DEVICE).exists():
         pytest.skip("no PM QoS device here")
-    read_end, write_end = os.pipe()
-    child = os.fork()
-    if child == 0:
-        try:
-            os.setgroups([])
-            os.setgid(NOBODY)
-            os.setuid(NOBODY)
-            os.write(write_end, repr(setting(SYSTEM, "idle states")).encode())
-        finally:
-            os._exit(0)
-    os.close(write_end)
-    with os.fdopen(read_end) as answer:
-        seen = answer.read()
-    assert os.waitpid(child, 0)[1] == 0
+    seen = as_nobody(lambda: setting(SYSTEM, "idle states"))
     driver = Path("/sys/devices/system/cpu/cpuidle/current_driver")
     name = driver.read_text().strip() if driver.exists() else "none"
     if name == "none":
