@@ -147,6 +147,7 @@ def record(
         body_region=body_region or "",
         contact_area_cm2=contact_area_cm2,
     )
+    session.check()  # a mistake is the one line on stderr, not after the warnings below
     warn_of_the_machine(session)
     live = live_view(sink, session) if sink is not None else None
     stop = threading.Event()

@@ -355,3 +355,21 @@ def test_a_loop_refused_real_time_is_said_before_the_session_which_runs(tmp_path
     ]
     outcome = inspect(tmp_path / "s.mcap").outcome
     assert outcome is not None and outcome.ticks > 0
+
+
+@pytest.mark.skipif(
+    shutil.which("setpriv") is None or os.geteuid() != 0, reason="needs setpriv and root"
+)
+def test_a_mistake_is_still_the_one_line_when_the_machine_has_warnings(tmp_path: Path) -> None:
+    no_nice = ["setpriv", "--bounding-set=-sys_nice", "--inh-caps=-sys_nice"]
+    result = subprocess.run(
+        [*no_nice, str(HILRIG), "record", "--subject", "Jane Doe", "--out", "s.mcap"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
+    assert (result.returncode, result.stdout) == (2, "")
+    assert result.stderr.startswith("error: subject id 'Jane Doe' is not a pseudonym")
+    assert result.stderr.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
