@@ -102,6 +102,11 @@ def print_waiting(text: str) -> None:
     print_line("waiting", "yellow", text)
 
 
+def print_warning(text: str) -> None:
+    """``warning: <text>`` on stderr (e.g. a setting of the machine that costs a session)."""
+    print_line("warning", "yellow", text)
+
+
 def print_interrupted(text: str = "stopped by Ctrl-C") -> None:
     """``interrupted: <text>`` on stderr."""
     print_line("interrupted", "bold red", text)
@@ -116,7 +121,7 @@ def show_warning(
     line: str | None = None,
 ) -> None:
     """:func:`warnings.showwarning` for the command line: ``warning: <message>``, one line."""
-    print_line("warning", "yellow", str(message))
+    print_warning(str(message))
 
 
 def one_line_errors(command: Callable[P, R]) -> Callable[P, R]:

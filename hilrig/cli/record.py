@@ -111,7 +111,7 @@ def record(
     import threading
     import time
 
-    from hilrig.cli.errors import print_waiting
+    from hilrig.cli.errors import print_waiting, print_warning
     from hilrig.cli.session_output import (
         SessionWatch,
         print_result,
@@ -147,8 +147,6 @@ def record(
         body_region=body_region or "",
         contact_area_cm2=contact_area_cm2,
     )
-    session.check()  # a mistake is the one line on stderr, not after the warnings below
-    warn_of_the_machine(session)
     live = live_view(sink, session) if sink is not None else None
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
@@ -161,6 +159,7 @@ def record(
             on_start=watch.on_start,
             on_event=watch.on_event,
             on_wait=print_waiting,
+            on_warning=print_warning,
         )
     print_result(summary_console(), result)
     print_verdict(summary_console(), result)
@@ -168,19 +167,6 @@ def record(
         raise HilrigError(f"the recording is incomplete: {result.recorder_error}")
     if result.ended_by:
         raise HilrigError(f"the session ended early: {result.ended_by}; see {result.path}")
-
-
-def warn_of_the_machine(session: SessionConfig) -> None:
-    """One ``warning:`` line for each setting of the machine (and a real rig's F/T port) that
-    would cost the session its timing and that ``hilrig doctor`` warns of
-    (:data:`~hilrig.machine.settings.SESSION_WARNINGS`); the session runs all the same."""
-    from hilrig.cli.errors import print_line
-    from hilrig.machine.settings import SESSION_WARNINGS
-
-    for setting in session.machine_settings():
-        if setting.verdict == "warn" and setting.name in SESSION_WARNINGS:
-            text = f"{setting.name}: {setting.value} - {setting.note} (hilrig doctor)"
-            print_line("warning", "yellow", text)
 
 
 def key_values(items: list[str], option: str = "--scenario-set") -> dict[str, object]:

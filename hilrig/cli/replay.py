@@ -217,7 +217,7 @@ def _into_rig(
 
     from rich.console import Console
 
-    from hilrig.cli.errors import print_waiting
+    from hilrig.cli.errors import print_waiting, print_warning
     from hilrig.cli.session_output import print_result
     from hilrig.errors import ReplayError
     from hilrig.replay import load_trace
@@ -245,7 +245,9 @@ def _into_rig(
         endpoints=read_rig_file(config).endpoints if config is not None else None,
         out=out[0] if out else None,
     )
-    result = record_session(session, stop=threading.Event(), on_wait=print_waiting)
+    result = record_session(
+        session, stop=threading.Event(), on_wait=print_waiting, on_warning=print_warning
+    )
     print_result(Console(soft_wrap=True, highlight=False), result)
     if result.recorder_error:
         raise ReplayError(f"the recording is incomplete: {result.recorder_error}")

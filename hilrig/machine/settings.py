@@ -13,6 +13,7 @@ import contextlib
 import gzip
 import os
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -21,8 +22,9 @@ from hilrig.timing import CPU_LATENCY_DEVICE, REALTIME_PRIORITY, realtime_permit
 
 Verdict = Literal["ok", "warn", "note"]
 SYSTEM = Path("/")
-#: The settings whose warning ``hilrig record`` repeats before a session: a loop at normal
-#: priority, CPUs let into slow idle states, a sensor port that holds bytes or may not be read.
+#: The settings whose warning a recorded session repeats as it starts (``hilrig record``): a
+#: loop at normal priority, CPUs let into slow idle states, a sensor port that holds bytes or
+#: may not be read.
 SESSION_WARNINGS = (
     "real-time scheduling",
     "idle states",
@@ -49,6 +51,15 @@ class Setting:
     value: str
     verdict: Verdict
     note: str
+
+
+def session_warnings(settings: Iterable[Setting]) -> list[str]:
+    """One line for each of ``settings`` that warns and is one of :data:`SESSION_WARNINGS`."""
+    return [
+        f"{s.name}: {s.value} - {s.note} (hilrig doctor)"
+        for s in settings
+        if s.verdict == "warn" and s.name in SESSION_WARNINGS
+    ]
 
 
 def read_settings(root: Path = SYSTEM) -> list[Setting]:

@@ -40,6 +40,7 @@ from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
 from hilrig.drivers.robot_state.link import ReceivedState, RobotStateClient
 from hilrig.emulator.rig import RigConfig, RigEndpoints
 from hilrig.errors import LinkError, OutputError, RecordingError
+from hilrig.machine.settings import session_warnings
 from hilrig.recording import SessionInfo, SessionOutcome
 from hilrig.recording.samples import EventRecord
 from hilrig.rig.device_io import DeviceIO
@@ -94,6 +95,7 @@ def record_session(
     rig_ready: Callable[[RigProcess], None] | None = None,
     recorder_ready: Callable[[RecorderProcess], None] | None = None,
     on_wait: Callable[[str], None] | None = None,
+    on_warning: Callable[[str], None] | None = None,
 ) -> SessionResult:
     """Run and record one session; raises HilrigError (one line) when it cannot start.
 
@@ -107,7 +109,10 @@ def record_session(
     ``on_start`` gets the loop before it ticks (e.g. for a status line), ``on_event`` every
     event (called on the tick: it must only queue), ``rig_ready`` and ``recorder_ready`` the
     emulated rig and recorder processes (fault injection in tests), ``on_wait`` a line saying
-    that another session holds the machine (this one then waits for it, or for ``stop``).
+    that another session holds the machine (this one then waits for it, or for ``stop``), and
+    ``on_warning`` a line for each setting of the machine that would cost the session most
+    (:func:`hilrig.machine.settings.session_warnings`; the session runs all the same). The
+    machine's settings are read once the machine is this session's, and attached to the file.
     """
     config.check()
     stop = stop or threading.Event()
@@ -122,6 +127,10 @@ def record_session(
     model = RobotModel()
     with ExitStack() as stack:
         stack.enter_context(one_session_at_a_time(stop, on_wait))
+        machine = config.machine_settings()
+        if on_warning is not None:
+            for line in session_warnings(machine):
+                on_warning(line)
         warm_up()  # numba's first-call costs, before any device talks
         freeze_heap()  # and the collector's big pass: the loop's own (realtime_python) is short
         made = _make_folders(config.out)
@@ -135,7 +144,7 @@ def record_session(
             config.out,
             feed=feed,
             urdf=model.urdf_xml,
-            attachments=config.attachments(),
+            attachments=config.attachments(machine),
             controller=config.loop.law.value,
             axis_names=AXIS_NAMES,
             view=None if live is None else live.queue,

@@ -9,6 +9,7 @@ import json
 import math
 import re
 import time
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -112,13 +113,13 @@ class SessionConfig:
             }
         return json.dumps(record, indent=2, default=str, sort_keys=True)
 
-    def attachments(self) -> list[Attachment]:
-        """The config (JSON), the scenario name, the machine's settings (JSON) and, when one
-        plays, the virtual trace (.npy)."""
+    def attachments(self, machine: Iterable[Setting]) -> list[Attachment]:
+        """The config (JSON), the scenario name, the ``machine``'s settings (JSON,
+        :func:`machine_json`) and, when one plays, the virtual trace (.npy)."""
         files = [
             Attachment("config.json", "application/json", self.as_json().encode()),
             Attachment("scenario.txt", "text/plain", self.scenario.encode()),
-            Attachment("machine.json", "application/json", self.machine_json().encode()),
+            Attachment("machine.json", "application/json", machine_json(machine).encode()),
         ]
         if self.virtual is not None:
             buffer = io.BytesIO()
@@ -134,16 +135,15 @@ class SessionConfig:
             settings += port_settings(Path(self.endpoints.ft_wrist_port))
         return settings
 
-    def machine_json(self) -> str:
-        """:meth:`machine_settings` as JSON (name, value, verdict, note; values keep file names
-        only): what the session's timing figures are to be read against, later and elsewhere."""
-        records = [
-            asdict(replace(s, value=without_folders(s.value))) for s in self.machine_settings()
-        ]
-        return json.dumps(records, indent=2)
-
     def session_id_or_now(self) -> str:
         return self.session_id or time.strftime("%Y%m%d-%H%M%S")
+
+
+def machine_json(settings: Iterable[Setting]) -> str:
+    """A machine's settings as JSON (name, value, verdict, note; values keep file names only):
+    what a session's timing figures are to be read against, later and elsewhere."""
+    records = [asdict(replace(s, value=without_folders(s.value))) for s in settings]
+    return json.dumps(records, indent=2)
 
 
 def without_folders(text: str) -> str:

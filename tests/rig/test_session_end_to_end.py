@@ -27,6 +27,7 @@ from hilrig.rig import (
     record_session,
 )
 from hilrig.rig.loop import WATCHDOG_TICKS
+from hilrig.rig.session_config import machine_json
 
 TOPICS_AT_1KHZ = (
     "/ft/wrist",
@@ -256,14 +257,14 @@ def test_a_real_rig_s_machine_settings_name_its_sensor_port_by_its_file_name(
             rig="aubo",
             endpoints=RigEndpoints(port, ("127.0.0.1", 8002), ("127.0.0.1", 502)),
         )
-        settings = json.loads(config.machine_json())
+        settings = json.loads(machine_json(config.machine_settings()))
     finally:
         os.close(parent)
         os.close(child)
     assert [s["name"] for s in settings][-3:] == ["F/T port", "F/T port access", "F/T port driver"]
     assert settings[-3]["value"] == Path(port).name
     emulated = SessionConfig(out=tmp_path / "e.mcap", subject_id="S001")
-    names = [s["name"] for s in json.loads(emulated.machine_json())]
+    names = [s["name"] for s in json.loads(machine_json(emulated.machine_settings()))]
     assert not [name for name in names if name.startswith("F/T port")]
 
 
