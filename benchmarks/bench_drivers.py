@@ -6,9 +6,11 @@ so the float is exact) and the emulator logs the monotonic time just before writ
 processes read the same system monotonic clock, so receive latency = driver receive time -
 emulator write time. CPU is each process's user + system time over the streaming window
 (os.times), as a share of one core.
-Also timed: the framer per frame, the polled drivers per call (FtSerial.poll with one frame
-waiting on a pty, JointTargetsWriter.write, and its poll taking one acknowledgement over a
-loopback socket), gravity compensation per call, and warm-started IK per tick.
+Also timed: the framer per frame, the joint-state decode per frame (the compiled StateFrames
+against the reference RobotStateDecoder, alternating in this process), the polled drivers per
+call (FtSerial.poll with one frame waiting on a pty, RobotStateClient.poll with one frame waiting
+on a loopback socket, JointTargetsWriter.write, and its poll taking one acknowledgement), gravity
+compensation per call, and warm-started IK per tick.
 """
 
 from __future__ import annotations
@@ -29,6 +31,9 @@ from benchmarks.harness import Result, quantiles_us
 from hilrig.drivers import FramerConfig, FtSerial, GravityCompensator, KunweiFramer, ToolLoad
 from hilrig.drivers.ft.wire import encode_frame
 from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
+from hilrig.drivers.robot_state.frames import StateFrames
+from hilrig.drivers.robot_state.link import RobotStateClient
+from hilrig.drivers.robot_state.wire import RobotState, RobotStateDecoder, RobotStatus, encode
 from hilrig.emulator import EmulatorConfig, FtEmulator
 from hilrig.robot import RobotModel
 
@@ -134,6 +139,39 @@ def bench_framer() -> list[Result]:
     return [Result("drivers", "framer feed per 28-byte frame", per_frame_us, "us", "", None)]
 
 
+def _joint_frames(count: int) -> list[bytes]:
+    """``count`` joint-state frames in sequence, as the robot streams them."""
+    return [
+        encode(RobotState(k, k, (1e-3 * k,) * 6, (0.1,) * 6, (2.0,) * 6, RobotStatus(3)))
+        for k in range(count)
+    ]
+
+
+def bench_state_decode(count: int = 20_000, rounds: int = 7) -> list[Result]:
+    """Per 170-byte frame: the compiled decoder (into its rows) against the reference decoder
+    (to RobotState tuples), alternating; medians of ``rounds`` runs each."""
+    frames = _joint_frames(1000)
+    compiled, reference = StateFrames(), RobotStateDecoder()
+    times: dict[str, list[float]] = {"compiled": [], "reference": []}
+    clock = time.perf_counter_ns
+    for _ in range(rounds):
+        start = clock()
+        for k in range(count):
+            compiled.feed_bytes(frames[k % 1000], k)
+        times["compiled"].append((clock() - start) / count / 1e3)
+        start = clock()
+        for k in range(count):
+            reference.feed(frames[k % 1000])
+        times["reference"].append((clock() - start) / count / 1e3)
+    assert compiled.stats == reference.stats
+    fast, slow = float(np.median(times["compiled"])), float(np.median(times["reference"]))
+    detail = {"reference_us": slow, "runs_us": times}
+    return [
+        Result("drivers", "joint-state decode per frame, compiled", fast, "us", "", None, detail),
+        Result("drivers", "... time against the reference decoder", fast / slow, "x", "", None),
+    ]
+
+
 def bench_polled_calls(count: int = 5000) -> list[Result]:
     """Per call: F/T poll with one frame waiting, writer.write, writer.poll with one reply."""
     master, slave = os.openpty()
@@ -155,6 +193,7 @@ def bench_polled_calls(count: int = 5000) -> list[Result]:
     ft.close()
     os.close(master)
     os.close(slave)
+    state_ns = _time_state_polls(count)
     with socket.create_server(("127.0.0.1", 0)) as listener:
         writer = JointTargetsWriter(ModbusEndpoint(port=listener.getsockname()[1]))
         writer.connect(timeout_s=None)
@@ -180,12 +219,41 @@ def bench_polled_calls(count: int = 5000) -> list[Result]:
     out = []
     for name, samples in (
         ("FtSerial.poll, one frame waiting", poll_ns),
+        ("RobotStateClient.poll, one frame waiting", state_ns),
         ("JointTargetsWriter.write (sent at once)", write_ns),
         ("JointTargetsWriter.poll, one acknowledgement", reply_ns),
     ):
         q_us = quantiles_us(samples)
         out.append(Result("drivers", f"{name} p50", q_us["p50"], "us", "", None, q_us))
     return out
+
+
+def _time_state_polls(count: int) -> np.ndarray:
+    """RobotStateClient.poll with one frame waiting on a loopback socket, ``count`` times (ns)."""
+    frames, poll_ns, clock = (
+        _joint_frames(count + 1),
+        np.empty(count, np.int64),
+        time.perf_counter_ns,
+    )
+    with socket.create_server(("127.0.0.1", 0)) as listener:
+        client = RobotStateClient("127.0.0.1", listener.getsockname()[1])
+        client.connect(first_frame_timeout_s=None)
+        peer, _ = listener.accept()
+        with peer:
+            peer.sendall(frames[0])
+            while not len(client.poll(time.monotonic_ns())):
+                select.select([client.fileno()], [], [], 1.0)
+            for k in range(count):
+                peer.sendall(frames[k + 1])
+                got = 0
+                while not got:  # a frame may come in pieces: time the poll that completes it
+                    select.select([client.fileno()], [], [], 1.0)
+                    start = clock()
+                    got = len(client.poll(time.monotonic_ns()))
+                    poll_ns[k] = clock() - start
+        assert client.decoder_stats().frames == count + 1 and client.errors == 0
+        client.close()
+    return poll_ns
 
 
 def bench_compensation() -> list[Result]:
@@ -237,5 +305,10 @@ def bench_ik() -> list[Result]:
 
 def run() -> list[Result]:
     return (
-        bench_stream() + bench_framer() + bench_polled_calls() + bench_compensation() + bench_ik()
+        bench_stream()
+        + bench_framer()
+        + bench_state_decode()
+        + bench_polled_calls()
+        + bench_compensation()
+        + bench_ik()
     )

@@ -2,7 +2,8 @@
 can be fuzzed and replayed) and its link (``link``, the transport)::
 
     ft/             Kunwei wrist/base F/T sensor: wire, link (serial), gravity (tool load)
-    robot_state/    the robot's joint-state stream: wire (HRS1 frames), link (TCP client)
+    robot_state/    the robot's joint-state stream: wire (HRS1 frames), frames (its compiled
+                    decoder into rows), link (TCP client)
     joint_targets/  joint targets: wire (Modbus register map), frame (RTU request), link
 
 Every link follows :mod:`hilrig.drivers.base`: ``connect()``/``close()`` (or ``with``), no thread of
@@ -25,8 +26,14 @@ if TYPE_CHECKING:
     from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
     from hilrig.drivers.joint_targets.wire import JointTargets, Mode, RegisterMap
     from hilrig.drivers.reconnect import Backoff
-    from hilrig.drivers.robot_state.link import ReceivedState, RobotStateClient
-    from hilrig.drivers.robot_state.wire import RobotState, RobotStateDecoder, RobotStatus
+    from hilrig.drivers.robot_state.frames import StateFrames
+    from hilrig.drivers.robot_state.link import RobotStateClient
+    from hilrig.drivers.robot_state.wire import (
+        STATE_DTYPE,
+        RobotState,
+        RobotStateDecoder,
+        RobotStatus,
+    )
 
 _MODULES = {
     "base": ("Device", "LinkStatus", "Reader", "Writer"),
@@ -36,12 +43,14 @@ _MODULES = {
     "joint_targets.link": ("JointTargetsWriter", "ModbusEndpoint"),
     "joint_targets.wire": ("JointTargets", "Mode", "RegisterMap"),
     "reconnect": ("Backoff",),
-    "robot_state.link": ("ReceivedState", "RobotStateClient"),
-    "robot_state.wire": ("RobotState", "RobotStateDecoder", "RobotStatus"),
+    "robot_state.frames": ("StateFrames",),
+    "robot_state.link": ("RobotStateClient",),
+    "robot_state.wire": ("STATE_DTYPE", "RobotState", "RobotStateDecoder", "RobotStatus"),
 }
 _MODULE_OF = {name: module for module, names in _MODULES.items() for name in names}
 
 __all__ = [
+    "STATE_DTYPE",
     "Backoff",
     "Device",
     "FramerConfig",
@@ -56,12 +65,12 @@ __all__ = [
     "ModbusEndpoint",
     "Mode",
     "Reader",
-    "ReceivedState",
     "RegisterMap",
     "RobotState",
     "RobotStateClient",
     "RobotStateDecoder",
     "RobotStatus",
+    "StateFrames",
     "ToolLoad",
     "Writer",
     "identify_tool_load",

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import select
 import time
-from collections.abc import Sequence
+from collections.abc import Collection
 from dataclasses import dataclass
 from typing import Protocol, Self, TypeVar
 
@@ -68,8 +68,9 @@ class Device(Protocol):
 class Reader(Device, Protocol[T_co]):
     """A device streaming samples, each carrying its host receive time ``t_ns``."""
 
-    def poll(self, now_ns: int) -> Sequence[T_co]:
-        """Read what is available, stamped ``now_ns``; the new samples, oldest first."""
+    def poll(self, now_ns: int) -> Collection[T_co]:
+        """Read what is available, stamped ``now_ns``; the new samples, oldest first (a list,
+        or rows of an array the next poll reuses)."""
         ...
 
     def latest(self) -> T_co | None:

@@ -5,7 +5,8 @@ joint-target writer, all polled (no driver thread), and the recorder's feed. ``w
 ``select`` until one of them has data or a deadline passes; ``pump`` reads each without blocking
 and puts every sample into its ring at once, from the first sample on (also while the session
 tares and waits for the recorder, before the first tick). Rows are assigned whole, one numpy call
-each, so a sample costs one store into the shared ring.
+each (a joint state is already a row of the ring's dtype), so a sample costs one store into the
+shared ring.
 """
 
 from __future__ import annotations
@@ -59,21 +60,13 @@ class DeviceIO:
         """Read every device without blocking and hand each sample to the recorder's rings;
         returns the wrist samples completed now, oldest first (the last is the newest)."""
         feed = self.feed
-        states = self.robot.poll(now_ns)
-        for received in states:
-            if feed is not None:
-                ring = feed.joint
+        states = self.robot.poll(now_ns)  # rows of the ring's own dtype
+        if feed is not None:
+            ring = feed.joint
+            for state in states:
                 slot = ring.reserve_index()
                 if slot >= 0:
-                    s = received.state
-                    ring.rows[slot] = (
-                        received.t_ns,
-                        s.device_t_ns,
-                        s.sequence,
-                        s.q_rad,
-                        s.qd_rad_s,
-                        s.torque_nm,
-                    )
+                    ring.rows[slot] = state
                     ring.commit()
         self.targets.poll(now_ns)
         samples = self.sensor.poll(now_ns)

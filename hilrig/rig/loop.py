@@ -150,7 +150,7 @@ class ControlLoop:
         latest = self._robot.latest()
         if latest is None:
             raise HilrigError("the control loop needs a robot state: connect the robot first")
-        q0 = np.asarray(latest.state.q_rad, dtype=np.float64)
+        q0 = np.array(latest["q"], dtype=np.float64)
         self._kernel = CompiledTick.build(
             self._controller, model, safety, compensator, q0, 1.0 / config.rate_hz
         )
@@ -260,7 +260,7 @@ class ControlLoop:
         sample = self._sensor.latest()
         robot = self._robot.latest()
         sensor_ok = sample is not None and start_ns - sample.t_ns <= self._stale_ns
-        robot_ok = robot is not None and start_ns - robot.t_ns <= self._stale_ns
+        robot_ok = robot is not None and start_ns - int(robot["t_ns"]) <= self._stale_ns
         events.link("wrist F/T sensor", sensor_ok, start_ns)
         events.link("robot joint state", robot_ok, start_ns)
         targets = self._targets
@@ -275,8 +275,8 @@ class ControlLoop:
         if sample is not None:
             inputs.raw_wrench[:] = sample.wrench_in_sensor
         if robot is not None:
-            inputs.q_measured[:] = robot.state.q_rad
-            inputs.torque_measured[:] = robot.state.torque_nm
+            inputs.q_measured[:] = robot["q"]
+            inputs.torque_measured[:] = robot["tau"]
         # the task is sampled at the tick's nominal time, not its jittery start, so the
         # commanded path is as smooth as the controller's fixed dt assumes
         t_s = (nominal_ns - self._t0_ns) / 1e9

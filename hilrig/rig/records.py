@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hilrig.drivers.robot_state.wire import STATE_DTYPE
 from hilrig.recording.schema import AXES, AXIS_NAMES, JOINT_NAMES, TICK_FIELDS
 
 __all__ = ["AXES", "AXIS_NAMES", "FT_DTYPE", "JOINTS", "JOINT_DTYPE", "JOINT_NAMES", "TICK_DTYPE"]
@@ -25,17 +26,10 @@ FT_DTYPE = np.dtype(
     ]
 )
 
-# One joint-state frame from the robot.
-JOINT_DTYPE = np.dtype(
-    [
-        ("t_ns", np.int64),  # host receive time
-        ("device_t_ns", np.int64),  # the controller's clock
-        ("seq", np.int64),  # the controller's frame sequence
-        ("q", np.float64, (JOINTS,)),  # rad
-        ("qd", np.float64, (JOINTS,)),  # rad/s
-        ("tau", np.float64, (JOINTS,)),  # joint torque, N*m
-    ]
-)
+# One joint-state frame from the robot, as its driver decodes it (host receive time, the
+# controller's clock and sequence, q rad, qd rad/s, tau N*m, status bits; the status is not
+# recorded)
+JOINT_DTYPE = STATE_DTYPE
 
 # One control tick: the fields of TICK_FIELDS (names, units, which ControllerState array each
 # fills), in that order.

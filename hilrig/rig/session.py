@@ -37,7 +37,7 @@ from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.drivers.ft.link import FtSerial
 from hilrig.drivers.ft.wire import FtSample
 from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
-from hilrig.drivers.robot_state.link import ReceivedState, RobotStateClient
+from hilrig.drivers.robot_state.link import RobotStateClient
 from hilrig.emulator.rig import RigConfig, RigEndpoints
 from hilrig.errors import LinkError, OutputError, RecordingError
 from hilrig.machine.settings import session_warnings
@@ -166,7 +166,7 @@ def record_session(
             assert config.endpoints is not None
             endpoints = config.endpoints
         devices = _connect(stack, endpoints, feed)
-        q0 = np.asarray(_wait_for_robot(devices).state.q_rad, dtype=np.float64)
+        q0 = np.array(_wait_for_robot(devices)["q"], dtype=np.float64)
         start_pose = model.fk(q0)
         compensator = GravityCompensator(config.tool)
         compensator.tare(_average_wrench(devices, config.tare_s), start_pose[:3, :3])
@@ -288,7 +288,7 @@ def _connect(stack: ExitStack, endpoints: RigEndpoints, feed: RecorderFeed) -> D
     return DeviceIO(sensor, robot, targets, feed)
 
 
-def _wait_for_robot(devices: DeviceIO) -> ReceivedState:
+def _wait_for_robot(devices: DeviceIO) -> np.void:
     """Read (and record) until the robot's first joint state and the sensor's first frame."""
     give_up = time.monotonic_ns() + round(FIRST_SAMPLE_TIMEOUT_S * 1e9)
     robot, sensor = devices.robot, devices.sensor

@@ -8,6 +8,8 @@ import time
 from collections.abc import Callable
 from typing import Any, Protocol
 
+import numpy as np
+
 
 class Polled(Protocol):
     def fileno(self) -> int: ...
@@ -36,8 +38,9 @@ def poll_until(
         now_ns = time.monotonic_ns()
         for driver in drivers:
             got = driver.poll(now_ns)
-            if sink is not None and got:
-                sink.extend(got)
+            if sink is not None and len(got):
+                # a driver's rows are reused by its next poll: keep copies
+                sink.extend(got.copy() if isinstance(got, np.ndarray) else got)
 
 
 def poll_for(duration_s: float, *drivers: Polled, sink: list[Any] | None = None) -> None:

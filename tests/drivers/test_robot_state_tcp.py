@@ -7,10 +7,12 @@ is reached, with a generous deadline; nothing asserts on timing.
 import socket
 import threading
 import time
+from typing import Any
 
 from polling import poll_for, poll_until
+from state_rows import as_state
 
-from hilrig.drivers.robot_state.link import ReceivedState, RobotStateClient
+from hilrig.drivers.robot_state.link import RobotStateClient
 from hilrig.drivers.robot_state.wire import MAGIC, RobotState, RobotStatus, encode
 from hilrig.emulator.robot_state_server import EmulatedRobotStateServer
 from hilrig.errors import LinkError
@@ -24,21 +26,24 @@ def source(sequence: int) -> RobotState:
 
 
 def test_frames_arrive_in_order_stamped_with_the_poll_time() -> None:
-    received: list[ReceivedState] = []
+    received: list[Any] = []
     with (
         EmulatedRobotStateServer(source) as server,
         RobotStateClient("127.0.0.1", server.port) as client,
     ):
         poll_until(lambda: len(received) >= 50, client, sink=received)
-        sequences = [r.state.sequence for r in received]
+        states = [as_state(r) for r in received]
+        sequences = [s.sequence for s in states]
         assert sequences == list(range(sequences[0], sequences[0] + len(received)))
-        assert all(r.state == source(r.state.sequence) for r in received)
-        assert client.latest() == received[-1]
+        assert states == [source(n) for n in sequences]
+        latest = client.latest()
+        assert latest is not None and latest.tobytes() == received[-1].tobytes()
         assert client.decoder_stats().frames == len(received)  # connect's frames included
+        assert client.status().samples == len(received)
         now_ns = time.monotonic_ns()
         poll_until(lambda: len(client.poll(now_ns)) > 0)
         latest = client.latest()
-        assert latest is not None and latest.t_ns == now_ns
+        assert latest is not None and latest["t_ns"] == now_ns
         status = client.status()
         assert status.connected and status.age_ns is not None and status.age_ns >= 0
     assert client.decoder_stats().crc_errors == client.decoder_stats().bytes_dropped == 0
@@ -117,7 +122,7 @@ def test_frames_split_across_polls_are_reassembled() -> None:
         client.connect(first_frame_timeout_s=None)
         peer, _ = listener.accept()
         with peer:
-            received: list[ReceivedState] = []
+            received: list[Any] = []
             frames = b"".join(encode(source(n)) for n in range(3))
             for at in range(0, len(frames), 7):  # 7-byte pieces, each polled on its own
                 peer.sendall(frames[at : at + 7])
@@ -126,7 +131,7 @@ def test_frames_split_across_polls_are_reassembled() -> None:
                     client,
                     sink=received,
                 )
-            assert [r.state for r in received] == [source(n) for n in range(3)]
+            assert [as_state(r) for r in received] == [source(n) for n in range(3)]
             poll_for(0.02, client)
             assert client.errors == 0
         client.close()

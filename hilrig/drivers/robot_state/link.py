@@ -1,10 +1,13 @@
 """Robot joint state over TCP, polled from the caller's loop; reconnects on loss.
 
 Follows the driver shape of ``hilrig.drivers.base``: the loop selects on ``fileno()`` and calls
-``poll(now_ns)``, which takes everything waiting on the non-blocking socket (``recv_into`` a
-preallocated buffer, TCP_NODELAY) and returns the decoded frames stamped ``now_ns``;
-``latest()`` is the newest and ``status().age_ns`` tells how old it is, which the loop compares
-with its limit to hold the robot on a lost link. The decoder is pluggable (``decoder_factory``)
+``poll(now_ns)``, which takes what is waiting on the non-blocking socket (one ``recv_into``
+straight into the decoder's buffer, TCP_NODELAY; up to 385 frames a poll, the rest at the next)
+and returns the frames decoded, rows of :data:`~hilrig.drivers.robot_state.wire.STATE_DTYPE`
+stamped ``now_ns`` in the decoder's own array (valid until the next poll: copy what you keep).
+``latest()`` is the newest row and ``status().age_ns`` tells how old it is, which the loop
+compares with its limit to hold the robot on a lost link. The decoder is pluggable
+(``decoder_factory``, default the compiled :class:`~hilrig.drivers.robot_state.frames.StateFrames`)
 so a real controller's format can replace hilrig's. ``poll`` never raises: each error is
 counted, the last kept in ``last_error``, and the link reopened with backoff. Connecting is
 non-blocking too (``connect_ex``, then writability checked by the next polls): no thread ever.
@@ -16,34 +19,44 @@ import contextlib
 import socket
 import time
 from collections.abc import Callable
-from typing import NamedTuple, Protocol
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
 
 from hilrig.drivers.base import LinkStatus, RateMeter, Reader, error_text, wait_readable
 from hilrig.drivers.reconnect import Backoff, start_tcp_connect, tcp_connected
-from hilrig.drivers.robot_state.wire import DecoderStats, RobotState, RobotStateDecoder
+from hilrig.drivers.robot_state.frames import StateFrames
+from hilrig.drivers.robot_state.wire import STATE_DTYPE, DecoderStats
 from hilrig.errors import LinkError
 
-RECV_BYTES = 65536  # per recv: 385 frames, far more than arrive between two 1 kHz ticks
+StateRows = NDArray[np.void]
+"""Rows of STATE_DTYPE: ``t_ns`` (the receive time), ``device_t_ns``, ``seq``, ``q``, ``qd``,
+``tau``, ``status``."""
 
 
 class StateDecoder(Protocol):
-    """Turns received bytes into frames; counts what it drops."""
+    """Turns received bytes into rows of STATE_DTYPE; counts what it drops (as StateFrames)."""
 
-    stats: DecoderStats
+    rows: StateRows
+    newest: StateRows
 
-    def feed(self, data: bytes) -> list[RobotState]: ...
+    @property
+    def free(self) -> memoryview:
+        """Where the next bytes are received."""
+        ...
+
+    def feed(self, count: int, t_ns: int) -> int:
+        """Decode the ``count`` bytes received into ``free``; the frames are ``rows[:n]``."""
+        ...
+
+    @property
+    def stats(self) -> DecoderStats: ...
+
     def reset(self) -> None: ...
 
 
-class ReceivedState(NamedTuple):
-    """A frame and the host monotonic time (ns) of the poll that received its last byte (a
-    named tuple: cheap to make at 1 kHz)."""
-
-    t_ns: int
-    state: RobotState
-
-
-class RobotStateClient(Reader[ReceivedState]):
+class RobotStateClient(Reader[np.void]):
     """Reads the joint-state stream at ``host:port``; ``with client:`` connects and closes."""
 
     def __init__(
@@ -51,7 +64,7 @@ class RobotStateClient(Reader[ReceivedState]):
         host: str,
         port: int,
         *,
-        decoder_factory: Callable[[], StateDecoder] = RobotStateDecoder,
+        decoder_factory: Callable[[], StateDecoder] = StateFrames,
         connect_timeout_s: float = 1.0,
         stall_after_s: float = 0.05,
         backoff_s: tuple[float, float] = (0.01, 1.0),
@@ -61,15 +74,16 @@ class RobotStateClient(Reader[ReceivedState]):
         self._connect_timeout_ns = round(connect_timeout_s * 1e9)
         self._stall_after_ns = round(stall_after_s * 1e9)
         self._backoff = Backoff(backoff_s)
-        self._buffer = bytearray(RECV_BYTES)
-        self._view = memoryview(self._buffer)
         self._sock: socket.socket | None = None  # connecting or connected
         self._fd = -1  # the socket's once connected
         self._connect_started_ns = 0
         self._wanted = False  # between connect() and close(): poll reopens a lost link
         self._linked_before = False
-        self._unreturned: list[ReceivedState] = []  # read by connect(), returned by next poll
-        self._latest: ReceivedState | None = None
+        self._none: StateRows = np.zeros(0, dtype=STATE_DTYPE)
+        self._unreturned = self._none  # read by connect(), returned by the next poll
+        self._newest = self._decoder.newest[0]  # a view: the decoder keeps it current
+        self._latest_t_ns = -1  # the newest frame's receive time; -1 before the first
+        self._frames = 0
         self._rate = RateMeter()
         self.reconnects = 0
         self.stalls = 0
@@ -92,11 +106,11 @@ class RobotStateClient(Reader[ReceivedState]):
         self._wanted = True
         self._linked_before = False
         self._backoff.succeeded()
-        self._unreturned = self.poll(time.monotonic_ns())
+        self._unreturned = self.poll(time.monotonic_ns()).copy()
         if first_frame_timeout_s is None:
             return
         deadline_ns = time.monotonic_ns() + round(first_frame_timeout_s * 1e9)
-        while not self._unreturned:
+        while not len(self._unreturned):
             left_ns = deadline_ns - time.monotonic_ns()
             if left_ns <= 0:
                 self.close()
@@ -105,12 +119,12 @@ class RobotStateClient(Reader[ReceivedState]):
                     f" s ({self.last_error or 'nothing received'})"
                 )
             wait_readable(self._fd, left_ns / 1e9)
-            self._unreturned = self.poll(time.monotonic_ns())
+            self._unreturned = self.poll(time.monotonic_ns()).copy()
 
     def close(self) -> None:
         """Close the socket; poll no longer reopens it. Idempotent."""
         self._wanted = False
-        self._unreturned = []
+        self._unreturned = self._none
         self._drop()
 
     @property
@@ -122,8 +136,9 @@ class RobotStateClient(Reader[ReceivedState]):
         """The connected socket's descriptor; -1 while down or still connecting."""
         return self._fd
 
-    def poll(self, now_ns: int) -> list[ReceivedState]:
-        """The frames received now (stamped ``now_ns``), oldest first; never blocks or raises."""
+    def poll(self, now_ns: int) -> StateRows:
+        """The frames received now (stamped ``now_ns``), oldest first, as rows the next poll
+        reuses; never blocks or raises."""
         try:
             received = self._pump(now_ns)
         except Exception as err:  # whatever happens (even a bug), the caller's loop carries on
@@ -131,22 +146,21 @@ class RobotStateClient(Reader[ReceivedState]):
             self.last_error = error_text(err)
             self._drop()
             self._backoff.failed(now_ns)
-            received = []
-        if self._unreturned:
-            received, self._unreturned = self._unreturned + received, []
+            received = self._none
+        if len(self._unreturned):
+            received, self._unreturned = np.concatenate((self._unreturned, received)), self._none
         return received
 
-    def latest(self) -> ReceivedState | None:
-        """The newest frame and its receive time."""
-        return self._latest
+    def latest(self) -> np.void | None:
+        """The newest frame (a row of STATE_DTYPE kept current in place: copy to keep it)."""
+        return None if self._latest_t_ns < 0 else self._newest
 
     def status(self) -> LinkStatus:
-        latest = self._latest
-        age_ns = None if latest is None else time.monotonic_ns() - latest.t_ns
+        age_ns = None if self._latest_t_ns < 0 else time.monotonic_ns() - self._latest_t_ns
         return LinkStatus(
             endpoint=self._where(),
             connected=self.is_connected,
-            samples=self._decoder.stats.frames,
+            samples=self._frames,
             rate_hz=self._rate.rate_hz(age_ns),
             age_ns=age_ns,
             stalls=self.stalls,
@@ -157,37 +171,33 @@ class RobotStateClient(Reader[ReceivedState]):
 
     # -- the link ----------------------------------------------------------------------------
 
-    def _pump(self, now_ns: int) -> list[ReceivedState]:
+    def _pump(self, now_ns: int) -> StateRows:
         """Connect when due, then read and decode; raises on a lost link."""
         if self._sock is None:
             if not (self._wanted and self._backoff.due(now_ns)):
-                return []
+                return self._none
             self._sock = start_tcp_connect(self.endpoint)
             self._connect_started_ns = now_ns
         if self._fd < 0 and not self._connected(now_ns):
-            return []
-        sock, buffer, frames = self._sock, self._buffer, []
-        assert sock is not None
-        while True:
-            try:
-                count = sock.recv_into(buffer)
-            except BlockingIOError:
-                break
-            if count == 0:
-                raise LinkError(f"robot state {self._where()}: closed by the robot")
-            self.bytes_received += count
-            frames += self._decoder.feed(bytes(self._view[:count]))
-            if count < len(buffer):
-                break
-        if not frames:
-            return []
-        latest = self._latest
-        if latest is not None and now_ns - latest.t_ns > self._stall_after_ns:
+            return self._none
+        assert self._sock is not None
+        decoder = self._decoder
+        try:
+            count = self._sock.recv_into(decoder.free)
+        except BlockingIOError:
+            return self._none
+        if count == 0:
+            raise LinkError(f"robot state {self._where()}: closed by the robot")
+        self.bytes_received += count
+        n = decoder.feed(count, now_ns)
+        if not n:
+            return self._none
+        if self._latest_t_ns >= 0 and now_ns - self._latest_t_ns > self._stall_after_ns:
             self.stalls += 1
-        received = [ReceivedState(now_ns, frame) for frame in frames]
-        self._latest = received[-1]
-        self._rate.update(now_ns, self._decoder.stats.frames)
-        return received
+        self._latest_t_ns = now_ns
+        self._frames += n
+        self._rate.update(now_ns, self._frames)
+        return decoder.rows[:n]
 
     def _connected(self, now_ns: int) -> bool:
         """Whether the connect under way completed; raises if it failed or took too long."""

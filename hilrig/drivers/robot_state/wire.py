@@ -26,6 +26,8 @@ from dataclasses import dataclass
 from enum import IntFlag
 from typing import NamedTuple
 
+import numpy as np
+
 MAGIC = b"HRS1"
 JOINTS = 6
 _HEAD = struct.Struct("<4sH")
@@ -36,6 +38,20 @@ LENGTH = _PAYLOAD.size + _CRC.size
 MAX_ABS_Q_RAD = 4 * math.pi  # beyond any joint's range: a value like this is corruption
 MAX_ABS_QD_RAD_S = 20.0
 MAX_ABS_TORQUE_NM = 1000.0
+
+# One decoded frame as a row (StateFrames, the loop's rings): the host receive time (monotonic ns)
+# and the frame's fields, SI units
+STATE_DTYPE = np.dtype(
+    [
+        ("t_ns", np.int64),
+        ("device_t_ns", np.int64),  # the controller's clock
+        ("seq", np.int64),  # the controller's frame sequence
+        ("q", np.float64, (JOINTS,)),  # rad
+        ("qd", np.float64, (JOINTS,)),  # rad/s
+        ("tau", np.float64, (JOINTS,)),  # joint torque, N*m
+        ("status", np.int64),  # RobotStatus bits
+    ]
+)
 
 
 class RobotStatus(IntFlag):

@@ -1,0 +1,246 @@
+"""The joint-state stream decoded by one compiled call into rows of arrays, for the real-time loop.
+
+:class:`StateFrames` decodes exactly as :class:`~hilrig.drivers.robot_state.wire.RobotStateDecoder`
+(magic, length, CRC-32, finite and plausible values, resynchronising one byte after a bad
+frame's magic; the same counters) but writes each frame into a row of :data:`STATE_DTYPE`
+stamped with the receive time, in a buffer made once: no bytes object, tuple or list per frame.
+The reference decoder stays the protocol's readable definition and the tests' oracle
+(``tests/drivers/test_robot_state_frames.py`` checks both on any stream, corrupt or not).
+
+    frames = StateFrames()
+    count = sock.recv_into(frames.free)       # the bytes go straight into its buffer
+    n = frames.feed(count, now_ns)            # frames.rows[:n] are the frames completed now
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import fields
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hilrig.compiled import njit
+from hilrig.drivers.robot_state.wire import (
+    FRAME_BYTES,
+    JOINTS,
+    LENGTH,
+    MAGIC,
+    MAX_ABS_Q_RAD,
+    MAX_ABS_QD_RAD_S,
+    MAX_ABS_TORQUE_NM,
+    STATE_DTYPE,
+    DecoderStats,
+)
+from hilrig.timing import bound_kernel
+
+RECV_BYTES = 65536  # what one feed takes at most: 385 frames, far more than arrive in a tick
+# the counters array: DecoderStats's fields in order, then the decoder's own state
+_COUNTERS = tuple(f.name for f in fields(DecoderStats))
+LAST_SEQUENCE, HELD = len(_COUNTERS), len(_COUNTERS) + 1  # -1: no frame since the last reset
+(
+    _FRAMES,
+    _CRC_ERRORS,
+    _LENGTH_ERRORS,
+    _REJECTED,
+    _RESYNCS,
+    _DROPPED,
+    _GAPS,
+    _MISSED,
+) = range(len(_COUNTERS))
+_MAGIC = np.frombuffer(MAGIC, dtype=np.uint8).copy()
+_CRC_AT = FRAME_BYTES - 4
+_Q_AT = 18  # then qd and torque, 48 bytes each; status at 162 (docs/protocols.md)
+_LIMITS = np.array([MAX_ABS_Q_RAD, MAX_ABS_QD_RAD_S, MAX_ABS_TORQUE_NM])
+
+
+def _crc_table() -> NDArray[np.int64]:
+    """The CRC-32 (zlib's reflected polynomial) of every byte value, for a byte at a time."""
+    table = np.arange(256, dtype=np.int64)
+    for _ in range(8):
+        table = np.where(table & 1, (table >> 1) ^ 0xEDB88320, table >> 1)
+    return table
+
+
+class StateFrames:
+    """A joint-state stream's decoder into :attr:`rows`; ``rows_capacity`` rows, enough for any
+    :data:`RECV_BYTES` fed at once."""
+
+    def __init__(self) -> None:
+        self.rows = np.zeros(RECV_BYTES // FRAME_BYTES + 1, dtype=STATE_DTYPE)
+        """The frames of the last :meth:`feed` (its first ``n``), oldest first."""
+        self.newest = np.zeros(1, dtype=STATE_DTYPE)
+        """The newest frame ever decoded (its one row; zeros before the first)."""
+        self._buffer = np.zeros(FRAME_BYTES + RECV_BYTES, dtype=np.uint8)
+        self._memory = self._buffer.data
+        self._counters = np.zeros(len(_COUNTERS) + 2, dtype=np.int64)
+        self._counters[LAST_SEQUENCE] = -1
+        self._feed: Callable[[int, int], int] = bound_kernel(
+            decode,
+            self._buffer,
+            self.rows,
+            self.newest,
+            self._counters,
+            _crc_table(),
+            _MAGIC,
+            _LIMITS,
+            np.zeros(1, dtype=np.uint64),
+            last=(0, 0),
+        )
+
+    @property
+    def free(self) -> memoryview:
+        """Where the next received bytes go (up to :data:`RECV_BYTES`): after those held."""
+        held = int(self._counters[HELD])
+        return self._memory[held : held + RECV_BYTES]
+
+    def feed(self, count: int, t_ns: int) -> int:
+        """Decode the ``count`` bytes just written into :attr:`free`; the frames completed are
+        ``rows[:n]`` stamped ``t_ns`` (n returned). A partial frame waits for more bytes."""
+        return self._feed(count, t_ns)
+
+    def feed_bytes(self, data: bytes, t_ns: int) -> int:
+        """:meth:`feed` of ``data`` (at most :data:`RECV_BYTES`), copied in: for tests and tools."""
+        self.free[: len(data)] = data
+        return self.feed(len(data), t_ns)
+
+    @property
+    def stats(self) -> DecoderStats:
+        """The counters since the decoder was made."""
+        values = self._counters.tolist()
+        return DecoderStats(**dict(zip(_COUNTERS, values, strict=False)))
+
+    def reset(self) -> None:
+        """Forget held bytes and the last sequence (after a reconnect); keep the counters."""
+        self._counters[HELD] = 0
+        self._counters[LAST_SEQUENCE] = -1
+
+
+@njit(cache=True)
+def decode(
+    buffer: NDArray[np.uint8],
+    rows: NDArray[np.void],
+    newest: NDArray[np.void],
+    counters: NDArray[np.int64],
+    crc_table: NDArray[np.int64],
+    magic: NDArray[np.uint8],
+    limits: NDArray[np.float64],
+    bits: NDArray[np.uint64],
+    count: int,
+    t_ns: int,
+) -> int:
+    """RobotStateDecoder.feed over ``buffer``'s held bytes and the ``count`` after them: frames
+    into ``rows`` (returns how many), the newest also into ``newest``, the unused tail moved to
+    the buffer's start."""
+    end = counters[HELD] + count
+    start = 0
+    n = 0
+    while True:
+        at = _find(buffer, magic, start, end)
+        if at < 0:  # keep a tail that may be the start of a magic split across reads
+            keep = end - (magic.shape[0] - 1)
+            if keep > start:
+                counters[_DROPPED] += keep - start
+                start = keep
+            break
+        counters[_DROPPED] += at - start
+        start = at
+        if end - start < FRAME_BYTES:
+            break
+        if _parse(buffer, start, rows, n, counters, crc_table, limits, bits):
+            rows[n].t_ns = t_ns
+            n += 1
+            start += FRAME_BYTES
+        else:
+            counters[_RESYNCS] += 1
+            counters[_DROPPED] += 1
+            start += 1
+    for i in range(start, end):  # to the front, no copy made
+        buffer[i - start] = buffer[i]
+    counters[HELD] = end - start
+    if n:
+        newest[0] = rows[n - 1]
+    return n
+
+
+@njit(cache=True, inline="always")
+def _find(buffer: NDArray[np.uint8], magic: NDArray[np.uint8], start: int, end: int) -> int:
+    """The first index >= ``start`` where ``magic`` lies whole before ``end``; -1 if none."""
+    for at in range(start, end - magic.shape[0] + 1):
+        k = 0
+        while k < magic.shape[0] and buffer[at + k] == magic[k]:
+            k += 1
+        if k == magic.shape[0]:
+            return at
+    return -1
+
+
+@njit(cache=True, inline="always")
+def _unsigned(buffer: NDArray[np.uint8], at: int, size: int) -> int:
+    """The little-endian unsigned integer of ``size`` (<= 4) bytes at ``at``."""
+    value = 0
+    for k in range(size):
+        value |= int(buffer[at + k]) << (8 * k)
+    return value
+
+
+@njit(cache=True, inline="always")
+def _bits64(buffer: NDArray[np.uint8], at: int, bits: NDArray[np.uint64]) -> None:
+    """The 8 little-endian bytes at ``at`` into ``bits[0]``."""
+    value = np.uint64(0)
+    for k in range(8):
+        value |= np.uint64(buffer[at + k]) << np.uint64(8 * k)
+    bits[0] = value
+
+
+@njit(cache=True)
+def _parse(
+    buffer: NDArray[np.uint8],
+    at: int,
+    rows: NDArray[np.void],
+    n: int,
+    counters: NDArray[np.int64],
+    crc_table: NDArray[np.int64],
+    limits: NDArray[np.float64],
+    bits: NDArray[np.uint64],
+) -> bool:
+    """The frame at ``at`` into ``rows[n]`` (but its t_ns) if length, CRC and values pass,
+    counted as RobotStateDecoder._parse counts; whether it did."""
+    row = rows[n]
+    if _unsigned(buffer, at + 4, 2) != LENGTH:
+        counters[_LENGTH_ERRORS] += 1
+        return False
+    crc = 0xFFFFFFFF
+    for i in range(at, at + _CRC_AT):
+        crc = crc_table[(crc ^ buffer[i]) & 0xFF] ^ (crc >> 8)
+    if crc ^ 0xFFFFFFFF != _unsigned(buffer, at + _CRC_AT, 4):
+        counters[_CRC_ERRORS] += 1
+        return False
+    floats = bits.view(np.float64)
+    for j in range(3 * JOINTS):
+        _bits64(buffer, at + _Q_AT + 8 * j, bits)
+        value = floats[0]
+        if not abs(value) <= limits[j // JOINTS]:  # NaN too
+            counters[_REJECTED] += 1
+            return False
+        if j < JOINTS:
+            row.q[j] = value
+        elif j < 2 * JOINTS:
+            row.qd[j - JOINTS] = value
+        else:
+            row.tau[j - 2 * JOINTS] = value
+    sequence = _unsigned(buffer, at + 6, 4)
+    _bits64(buffer, at + 10, bits)
+    row.device_t_ns = bits.view(np.int64)[0]
+    row.seq = sequence
+    row.status = _unsigned(buffer, at + _Q_AT + 8 * 3 * JOINTS, 4)
+    last = counters[LAST_SEQUENCE]
+    if last >= 0:
+        step = (sequence - last) & 0xFFFFFFFF
+        if step != 1:
+            counters[_GAPS] += 1
+            if 1 < step < 0x80000000:
+                counters[_MISSED] += step - 1
+    counters[LAST_SEQUENCE] = sequence
+    counters[_FRAMES] += 1
+    return True
