@@ -151,6 +151,8 @@ class ControlLoop:
         if latest is None:
             raise HilrigError("the control loop needs a robot state: connect the robot first")
         q0 = np.array(latest["q"], dtype=np.float64)
+        # the newest joint state's fields, views the robot's driver keeps current
+        self._robot_q, self._robot_tau = self._robot.newest["q"][0], self._robot.newest["tau"][0]
         self._kernel = CompiledTick.build(
             self._controller, model, safety, compensator, q0, 1.0 / config.rate_hz
         )
@@ -258,9 +260,9 @@ class ControlLoop:
         kernel = self._kernel
         inputs = self._inputs
         sample = self._sensor.latest()
-        robot = self._robot.latest()
+        robot_t_ns = self._robot.latest_t_ns
         sensor_ok = sample is not None and start_ns - sample.t_ns <= self._stale_ns
-        robot_ok = robot is not None and start_ns - int(robot["t_ns"]) <= self._stale_ns
+        robot_ok = robot_t_ns >= 0 and start_ns - robot_t_ns <= self._stale_ns
         events.link("wrist F/T sensor", sensor_ok, start_ns)
         events.link("robot joint state", robot_ok, start_ns)
         targets = self._targets
@@ -274,9 +276,9 @@ class ControlLoop:
         # the kernel reads the measured inputs only when both are fresh (so present)
         if sample is not None:
             inputs.raw_wrench[:] = sample.wrench_in_sensor
-        if robot is not None:
-            inputs.q_measured[:] = robot["q"]
-            inputs.torque_measured[:] = robot["tau"]
+        if robot_t_ns >= 0:
+            inputs.q_measured[:] = self._robot_q
+            inputs.torque_measured[:] = self._robot_tau
         # the task is sampled at the tick's nominal time, not its jittery start, so the
         # commanded path is as smooth as the controller's fixed dt assumes
         t_s = (nominal_ns - self._t0_ns) / 1e9

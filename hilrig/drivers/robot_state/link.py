@@ -81,8 +81,10 @@ class RobotStateClient(Reader[np.void]):
         self._linked_before = False
         self._none: StateRows = np.zeros(0, dtype=STATE_DTYPE)
         self._unreturned = self._none  # read by connect(), returned by the next poll
-        self._newest = self._decoder.newest[0]  # a view: the decoder keeps it current
-        self._latest_t_ns = -1  # the newest frame's receive time; -1 before the first
+        self.newest = self._decoder.newest
+        """The newest frame, one row the decoder keeps current in place (its fields are views:
+        ``newest["q"][0]`` is always the newest q); meaningful once :attr:`latest_t_ns` >= 0."""
+        self._latest_t_ns = -1
         self._frames = 0
         self._rate = RateMeter()
         self.reconnects = 0
@@ -153,7 +155,12 @@ class RobotStateClient(Reader[np.void]):
 
     def latest(self) -> np.void | None:
         """The newest frame (a row of STATE_DTYPE kept current in place: copy to keep it)."""
-        return None if self._latest_t_ns < 0 else self._newest
+        return None if self._latest_t_ns < 0 else self.newest[0]
+
+    @property
+    def latest_t_ns(self) -> int:
+        """The newest frame's receive time (monotonic ns); -1 before the first."""
+        return self._latest_t_ns
 
     def status(self) -> LinkStatus:
         age_ns = None if self._latest_t_ns < 0 else time.monotonic_ns() - self._latest_t_ns
