@@ -68,6 +68,7 @@ from hilrig.tick.kernel import (
 )
 from hilrig.tick.safety import SafetyClamp
 from hilrig.tick.trajectory import Trajectory
+from hilrig.tick.trajectory_kernel import desired_writer
 from hilrig.timing import realtime_python
 
 COMMAND_FAULT_HOLD_NS = 50_000_000  # after a failed joint-target write, hold this long
@@ -141,7 +142,6 @@ class ControlLoop:
         self._sensor = io.sensor
         self._robot = io.robot
         self._targets = targets = io.targets
-        self._trajectory = trajectory
         self._feed = io.feed
         self._on_event = on_event
         self._virtual = virtual
@@ -163,6 +163,7 @@ class ControlLoop:
         self._inputs = inputs = self._kernel.inputs
         inputs.rotation_d[:] = trajectory.rotation  # the task keeps the start orientation
         inputs.orientation_d[:] = trajectory.orientation
+        self._desired = desired_writer(trajectory, inputs.position_d)  # compiled: one call a tick
         self._q_cmd = self._kernel.q_cmd
         self._write_row: Callable[..., None] | None = None  # bound to the ring while running
         self._send_ns = 0
@@ -282,7 +283,7 @@ class ControlLoop:
         # the task is sampled at the tick's nominal time, not its jittery start, so the
         # commanded path is as smooth as the controller's fixed dt assumes
         t_s = (nominal_ns - self._t0_ns) / 1e9
-        self._trajectory.desired(t_s, inputs.position_d)
+        self._desired(t_s)
         if self._virtual is not None:
             self._play(t_s, nominal_ns)
         result = kernel.step(flags)
