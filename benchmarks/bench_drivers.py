@@ -6,8 +6,8 @@ so the float is exact) and the emulator logs the monotonic time just before writ
 processes read the same system monotonic clock, so receive latency = driver receive time -
 emulator write time. CPU is each process's user + system time over the streaming window
 (os.times), as a share of one core.
-Also timed: the framer per frame, the joint-state decode per frame (the compiled StateFrames
-against the reference RobotStateDecoder, alternating in this process), the polled drivers per
+Also timed: each stream's decode per frame (the compiled FtFrames and StateFrames against the
+reference KunweiFramer and RobotStateDecoder, alternating in this process), the polled drivers per
 call (FtSerial.poll with one frame waiting on a pty, RobotStateClient.poll with one frame waiting
 on a loopback socket, JointTargetsWriter.write, and its poll taking one acknowledgement), gravity
 compensation per call, and warm-started IK per tick.
@@ -21,6 +21,8 @@ import select
 import socket
 import tempfile
 import time
+from collections.abc import Callable
+from functools import partial
 from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import Any
@@ -29,6 +31,7 @@ import numpy as np
 
 from benchmarks.harness import Result, quantiles_us
 from hilrig.drivers import FramerConfig, FtSerial, GravityCompensator, KunweiFramer, ToolLoad
+from hilrig.drivers.ft.frames import FtFrames
 from hilrig.drivers.ft.wire import encode_frame
 from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
 from hilrig.drivers.robot_state.frames import StateFrames
@@ -90,7 +93,8 @@ def bench_stream() -> list[Result]:
             while time.monotonic() - wall0 < STREAM_S:
                 select.select([ft.fileno()], [], [], 0.01)
                 polled = ft.poll(time.monotonic_ns())
-                received.extend((s.t_ns, s.wrench_in_sensor[0]) for s in polled)
+                slots = polled["wrench"][:, 0].tolist()
+                received.extend(zip(polled["t_ns"].tolist(), slots, strict=True))
             cpu1, wall1 = cpu_s(), time.monotonic()
             status, framer = ft.status(), ft.framer_stats()
         ours.send("stop")
@@ -127,18 +131,6 @@ def bench_stream() -> list[Result]:
     ]
 
 
-def bench_framer() -> list[Result]:
-    frames = [encode_frame((float(k), 1.0, 2.0, 0.1, 0.2, 0.3)) for k in range(1000)]
-    framer = KunweiFramer()
-    framer.feed(frames[0] + frames[1])
-    count = 100_000
-    start = time.perf_counter_ns()
-    for k in range(count):
-        framer.feed(frames[k % 1000], 0)
-    per_frame_us = (time.perf_counter_ns() - start) / count / 1e3
-    return [Result("drivers", "framer feed per 28-byte frame", per_frame_us, "us", "", None)]
-
-
 def _joint_frames(count: int) -> list[bytes]:
     """``count`` joint-state frames in sequence, as the robot streams them."""
     return [
@@ -147,29 +139,43 @@ def _joint_frames(count: int) -> list[bytes]:
     ]
 
 
-def bench_state_decode(count: int = 20_000, rounds: int = 7) -> list[Result]:
-    """Per 170-byte frame: the compiled decoder (into its rows) against the reference decoder
-    (to RobotState tuples), alternating; medians of ``rounds`` runs each."""
-    frames = _joint_frames(1000)
-    compiled, reference = StateFrames(), RobotStateDecoder()
-    times: dict[str, list[float]] = {"compiled": [], "reference": []}
-    clock = time.perf_counter_ns
-    for _ in range(rounds):
-        start = clock()
-        for k in range(count):
-            compiled.feed_bytes(frames[k % 1000], k)
-        times["compiled"].append((clock() - start) / count / 1e3)
-        start = clock()
-        for k in range(count):
-            reference.feed(frames[k % 1000])
-        times["reference"].append((clock() - start) / count / 1e3)
-    assert compiled.stats == reference.stats
-    fast, slow = float(np.median(times["compiled"])), float(np.median(times["reference"]))
-    detail = {"reference_us": slow, "runs_us": times}
-    return [
-        Result("drivers", "joint-state decode per frame, compiled", fast, "us", "", None, detail),
-        Result("drivers", "... time against the reference decoder", fast / slow, "x", "", None),
-    ]
+def bench_decoders(count: int = 20_000, rounds: int = 7) -> list[Result]:
+    """Per frame, each stream's compiled decoder (into its rows) against its reference decoder
+    (to tuples), alternating; medians of ``rounds`` runs each."""
+    ft_frames = [encode_frame((float(k), 1.0, 2.0, 0.1, 0.2, 0.3)) for k in range(1000)]
+    streams: tuple[tuple[str, list[bytes], dict[str, Callable[[bytes], object]]], ...] = (
+        (
+            "F/T framer per 28-byte frame",
+            ft_frames,
+            {"compiled": partial(FtFrames().feed_bytes, t_ns=0), "reference": KunweiFramer().feed},
+        ),
+        (
+            "joint-state decode per 170-byte frame",
+            _joint_frames(1000),
+            {
+                "compiled": partial(StateFrames().feed_bytes, t_ns=0),
+                "reference": RobotStateDecoder().feed,
+            },
+        ),
+    )
+    out = []
+    for name, frames, feeds in streams:
+        for feed in feeds.values():
+            feed(frames[0])  # the F/T framers lock on a frame and the next header
+        times: dict[str, list[float]] = {"compiled": [], "reference": []}
+        for _ in range(rounds):
+            for kind, feed in feeds.items():
+                start = time.perf_counter_ns()
+                for k in range(count):
+                    feed(frames[k % 1000])
+                times[kind].append((time.perf_counter_ns() - start) / count / 1e3)
+        fast, slow = float(np.median(times["compiled"])), float(np.median(times["reference"]))
+        detail = {"reference_us": slow, "runs_us": times}
+        out += [
+            Result("drivers", f"{name}, compiled", fast, "us", "", None, detail),
+            Result("drivers", "... time against the reference decoder", fast / slow, "x", "", None),
+        ]
+    return out
 
 
 def bench_polled_calls(count: int = 5000) -> list[Result]:
@@ -180,15 +186,15 @@ def bench_polled_calls(count: int = 5000) -> list[Result]:
     frame, poll_ns = encode_frame((1.0, 2.0, 3.0, 0.1, 0.2, 0.3)), np.empty(count, np.int64)
     clock = time.perf_counter_ns
     os.write(master, frame + frame)  # the framer locks on a frame followed by a header
-    while not ft.poll(time.monotonic_ns()):
+    while not len(ft.poll(time.monotonic_ns())):
         select.select([ft.fileno()], [], [], 1.0)
     for k in range(count):
         os.write(master, frame)
-        got: list[object] = []
+        got = 0
         while not got:  # the pty may hand the frame over in pieces: time the poll that frames it
             select.select([ft.fileno()], [], [], 1.0)
             start = clock()
-            got = list(ft.poll(time.monotonic_ns()))
+            got = len(ft.poll(time.monotonic_ns()))
             poll_ns[k] = clock() - start
     ft.close()
     os.close(master)
@@ -305,10 +311,5 @@ def bench_ik() -> list[Result]:
 
 def run() -> list[Result]:
     return (
-        bench_stream()
-        + bench_framer()
-        + bench_state_decode()
-        + bench_polled_calls()
-        + bench_compensation()
-        + bench_ik()
+        bench_stream() + bench_decoders() + bench_polled_calls() + bench_compensation() + bench_ik()
     )

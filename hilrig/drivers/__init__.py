@@ -1,7 +1,8 @@
 """Device drivers: a folder per device, each with its wire format (``wire``, pure: no I/O, so it
 can be fuzzed and replayed) and its link (``link``, the transport)::
 
-    ft/             Kunwei wrist/base F/T sensor: wire, link (serial), gravity (tool load)
+    ft/             Kunwei wrist/base F/T sensor: wire, frames (its compiled framer into rows),
+                    link (serial), gravity (tool load)
     robot_state/    the robot's joint-state stream: wire (HRS1 frames), frames (its compiled
                     decoder into rows), link (TCP client)
     joint_targets/  joint targets: wire (Modbus register map), frame (RTU request), link
@@ -20,9 +21,16 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from hilrig.drivers.base import Device, LinkStatus, Reader, Writer
+    from hilrig.drivers.ft.frames import FtFrames
     from hilrig.drivers.ft.gravity import GravityCompensator, ToolLoad, identify_tool_load
     from hilrig.drivers.ft.link import FtSerial
-    from hilrig.drivers.ft.wire import FramerConfig, FramerStats, FtSample, KunweiFramer
+    from hilrig.drivers.ft.wire import (
+        SAMPLE_DTYPE,
+        FramerConfig,
+        FramerStats,
+        FtSample,
+        KunweiFramer,
+    )
     from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
     from hilrig.drivers.joint_targets.wire import JointTargets, Mode, RegisterMap
     from hilrig.drivers.reconnect import Backoff
@@ -38,8 +46,9 @@ if TYPE_CHECKING:
 _MODULES = {
     "base": ("Device", "LinkStatus", "Reader", "Writer"),
     "ft.gravity": ("GravityCompensator", "ToolLoad", "identify_tool_load"),
+    "ft.frames": ("FtFrames",),
     "ft.link": ("FtSerial",),
-    "ft.wire": ("FramerConfig", "FramerStats", "FtSample", "KunweiFramer"),
+    "ft.wire": ("SAMPLE_DTYPE", "FramerConfig", "FramerStats", "FtSample", "KunweiFramer"),
     "joint_targets.link": ("JointTargetsWriter", "ModbusEndpoint"),
     "joint_targets.wire": ("JointTargets", "Mode", "RegisterMap"),
     "reconnect": ("Backoff",),
@@ -50,11 +59,13 @@ _MODULES = {
 _MODULE_OF = {name: module for module, names in _MODULES.items() for name in names}
 
 __all__ = [
+    "SAMPLE_DTYPE",
     "STATE_DTYPE",
     "Backoff",
     "Device",
     "FramerConfig",
     "FramerStats",
+    "FtFrames",
     "FtSample",
     "FtSerial",
     "GravityCompensator",

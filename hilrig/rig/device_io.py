@@ -4,9 +4,8 @@
 joint-target writer, all polled (no driver thread), and the recorder's feed. ``wait`` sleeps in
 ``select`` until one of them has data or a deadline passes; ``pump`` reads each without blocking
 and puts every sample into its ring at once, from the first sample on (also while the session
-tares and waits for the recorder, before the first tick). Rows are assigned whole, one numpy call
-each (a joint state is already a row of the ring's dtype), so a sample costs one store into the
-shared ring.
+tares and waits for the recorder, before the first tick). The drivers return their samples as
+rows of the rings' own dtypes, so a sample costs one row copy into the shared ring.
 """
 
 from __future__ import annotations
@@ -16,8 +15,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from hilrig.drivers.ft.link import FtSerial
-from hilrig.drivers.ft.wire import FtSample
+from hilrig.drivers.ft.link import FtSerial, SampleRows
 from hilrig.drivers.joint_targets.link import JointTargetsWriter
 from hilrig.drivers.robot_state.link import RobotStateClient
 from hilrig.rig.recorder_feed import RecorderFeed
@@ -44,7 +42,7 @@ class DeviceIO:
         return time.monotonic_ns()
 
     def pump_until(
-        self, done: Callable[[list[FtSample]], bool], give_up_ns: int, *, step_ns: int = 10_000_000
+        self, done: Callable[[SampleRows], bool], give_up_ns: int, *, step_ns: int = 10_000_000
     ) -> bool:
         """Outside the loop: wait and read (every sample to the rings) until ``done(the wrist
         samples just read)`` is true, or ``give_up_ns`` passes (then False). ``done`` is asked
@@ -56,7 +54,7 @@ class DeviceIO:
             if now >= give_up_ns:
                 return False
 
-    def pump(self, now_ns: int) -> list[FtSample]:
+    def pump(self, now_ns: int) -> SampleRows:
         """Read every device without blocking and hand each sample to the recorder's rings;
         returns the wrist samples completed now, oldest first (the last is the newest)."""
         feed = self.feed
@@ -73,9 +71,9 @@ class DeviceIO:
         self.samples_read += len(states) + len(samples)
         if feed is not None:
             ring = feed.ft
-            for sample in samples:
+            for sample in samples:  # rows of the ring's own dtype too
                 slot = ring.reserve_index()
                 if slot >= 0:
-                    ring.rows[slot] = (sample.t_ns, sample.seq, sample.wrench_in_sensor)
+                    ring.rows[slot] = sample
                     ring.commit()
         return samples

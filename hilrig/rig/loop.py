@@ -151,8 +151,9 @@ class ControlLoop:
         if latest is None:
             raise HilrigError("the control loop needs a robot state: connect the robot first")
         q0 = np.array(latest["q"], dtype=np.float64)
-        # the newest joint state's fields, views the robot's driver keeps current
+        # the newest samples' fields, views their drivers keep current
         self._robot_q, self._robot_tau = self._robot.newest["q"][0], self._robot.newest["tau"][0]
+        self._wrench = self._sensor.newest["wrench"][0]
         self._kernel = CompiledTick.build(
             self._controller, model, safety, compensator, q0, 1.0 / config.rate_hz
         )
@@ -219,10 +220,10 @@ class ControlLoop:
                 if time.monotonic_ns() >= wake_ns:
                     wake_ns = nominal + 2 * period  # the fallback tick's deadline
                 now = self._io.wait(wake_ns)
-                frames = self._io.pump(now)
+                frames = len(self._io.pump(now))
                 if frames:  # each frame is one period of the sensor's clock
-                    expected = nominal + period * len(frames)
-                    summary.merged_frames += len(frames) - 1
+                    expected = nominal + period * frames
+                    summary.merged_frames += frames - 1
                 elif now >= nominal + 2 * period:
                     expected = nominal + period  # no frame for a whole period: on the deadline
                 else:
@@ -252,7 +253,7 @@ class ControlLoop:
                 summary.lateness.add(lateness)
                 if done - nominal > period:
                     summary.missed_deadlines += 1
-                summary.missed_deadlines += len(frames) - 1 if frames else 0
+                summary.missed_deadlines += frames - 1 if frames else 0
 
     def tick(self, start_ns: int, nominal_ns: int) -> None:
         """One tick on the newest samples, started at ``start_ns`` for ``nominal_ns``."""
@@ -260,9 +261,9 @@ class ControlLoop:
         events = self._events
         kernel = self._kernel
         inputs = self._inputs
-        sample = self._sensor.latest()
+        sample_t_ns = self._sensor.latest_t_ns
         robot_t_ns = self._robot.latest_t_ns
-        sensor_ok = sample is not None and start_ns - sample.t_ns <= self._stale_ns
+        sensor_ok = sample_t_ns >= 0 and start_ns - sample_t_ns <= self._stale_ns
         robot_ok = robot_t_ns >= 0 and start_ns - robot_t_ns <= self._stale_ns
         events.link("wrist F/T sensor", sensor_ok, start_ns)
         events.link("robot joint state", robot_ok, start_ns)
@@ -275,8 +276,8 @@ class ControlLoop:
         if start_ns >= self._command_hold_until_ns:
             flags |= COMMAND_OK
         # the kernel reads the measured inputs only when both are fresh (so present)
-        if sample is not None:
-            inputs.raw_wrench[:] = sample.wrench_in_sensor
+        if sample_t_ns >= 0:
+            inputs.raw_wrench[:] = self._wrench
         if robot_t_ns >= 0:
             inputs.q_measured[:] = self._robot_q
             inputs.torque_measured[:] = self._robot_tau
@@ -288,7 +289,7 @@ class ControlLoop:
             self._play(t_s, nominal_ns)
         result = kernel.step(flags)
         stopped = kernel.stopped
-        source_ns = sample.t_ns if (result & FRESH) and not (result & HELD) and sample else 0
+        source_ns = sample_t_ns if (result & FRESH) and not (result & HELD) else 0
         sending = time.monotonic_ns()
         targets.write(self._q_cmd, Mode.STOP if stopped else Mode.TRACK, source_ns=source_ns)
         self._send_ns = time.monotonic_ns() - sending

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hilrig.drivers.ft.wire import SAMPLE_DTYPE
 from hilrig.drivers.robot_state.wire import STATE_DTYPE
 from hilrig.recording.schema import AXES, AXIS_NAMES, JOINT_NAMES, TICK_FIELDS
 
@@ -17,14 +18,9 @@ __all__ = ["AXES", "AXIS_NAMES", "FT_DTYPE", "JOINTS", "JOINT_DTYPE", "JOINT_NAM
 
 JOINTS = len(JOINT_NAMES)
 
-# One wrist (or base) F/T sample as measured: sensor frame, N and N*m.
-FT_DTYPE = np.dtype(
-    [
-        ("t_ns", np.int64),  # host receive time
-        ("seq", np.int64),  # the driver's frame counter
-        ("wrench", np.float64, (6,)),  # Fx Fy Fz (N) Mx My Mz (N*m)
-    ]
-)
+# One wrist (or base) F/T sample as its driver frames it: receive time, frame counter, wrench as
+# measured (sensor frame, N and N*m)
+FT_DTYPE = SAMPLE_DTYPE
 
 # One joint-state frame from the robot, as its driver decodes it (host receive time, the
 # controller's clock and sequence, q rad, qd rad/s, tau N*m, status bits; the status is not

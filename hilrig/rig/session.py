@@ -34,8 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hilrig.drivers.ft.gravity import GravityCompensator
-from hilrig.drivers.ft.link import FtSerial
-from hilrig.drivers.ft.wire import FtSample
+from hilrig.drivers.ft.link import FtSerial, SampleRows
 from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
 from hilrig.drivers.robot_state.link import RobotStateClient
 from hilrig.emulator.rig import RigConfig, RigEndpoints
@@ -302,11 +301,11 @@ def _wait_for_robot(devices: DeviceIO) -> np.void:
 
 def _average_wrench(devices: DeviceIO, duration_s: float) -> NDArray[np.float64]:
     """The mean raw wrist wrench over ``duration_s`` of samples (all recorded): the tare."""
-    samples: list[tuple[float, ...]] = []
+    samples: list[list[float]] = []
     end = time.monotonic_ns() + round(duration_s * 1e9)
 
-    def enough(new: list[FtSample]) -> bool:
-        samples.extend(s.wrench_in_sensor for s in new)
+    def enough(new: SampleRows) -> bool:
+        samples.extend(new["wrench"].tolist())
         return bool(samples) and time.monotonic_ns() >= end
 
     if not devices.pump_until(enough, end + round(FIRST_SAMPLE_TIMEOUT_S * 1e9)):
@@ -332,9 +331,9 @@ def _read_until_quiet(devices: DeviceIO, *, sensor_only: bool) -> None:
     quiet_ns = round(QUIET_S * 1e9)
     last = [devices.samples_read, time.monotonic_ns()]  # samples read, when new data came last
 
-    def quiet(wrist: list[FtSample]) -> bool:
+    def quiet(wrist: SampleRows) -> bool:
         now = time.monotonic_ns()
-        if wrist or (not sensor_only and devices.samples_read != last[0]):
+        if len(wrist) or (not sensor_only and devices.samples_read != last[0]):
             last[:] = [devices.samples_read, now]
         return now - last[1] >= quiet_ns
 

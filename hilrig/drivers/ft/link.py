@@ -2,9 +2,12 @@
 
 ``connect()`` opens the port (460800 8N1 by default), sends the start command and waits for the
 first frame (blocking, not for the real-time loop). Then the loop selects on ``fileno()`` and
-calls ``poll(now_ns)``: one non-blocking read of everything waiting, framed by
-:class:`~hilrig.drivers.ft.wire.KunweiFramer`, returned as new samples stamped ``now_ns``
-(those read while connecting come first in the first poll). ``poll`` never raises: an error is
+calls ``poll(now_ns)``: one non-blocking read of everything waiting (straight into the
+framer's buffer), framed by one compiled call (:class:`~hilrig.drivers.ft.frames.FtFrames`, the
+twin of :class:`~hilrig.drivers.ft.wire.KunweiFramer`) and returned as rows of
+:data:`~hilrig.drivers.ft.wire.SAMPLE_DTYPE` stamped ``now_ns``, in the framer's own array
+(valid until the next poll: copy what you keep; those read while connecting come first in the
+first poll). ``poll`` never raises: an error is
 counted and kept in ``status().last_error``, the port closed and reopened with backoff (and the
 start command sent again); after a silence of ``restart_after_s`` the start command is re-sent
 (a sensor that rebooted waits for it). ``close()`` sends the stop command. No thread.
@@ -22,22 +25,24 @@ import serial
 from numpy.typing import NDArray
 
 from hilrig.drivers.base import LinkStatus, RateMeter, Reader, error_text, wait_readable
+from hilrig.drivers.ft.frames import FtFrames
 from hilrig.drivers.ft.wire import (
+    SAMPLE_DTYPE,
     START_COMMAND,
     STOP_COMMAND,
     FramerConfig,
     FramerStats,
-    FtSample,
-    KunweiFramer,
 )
 from hilrig.drivers.reconnect import Backoff
 from hilrig.errors import LinkError
 
 DEFAULT_BAUDRATE = 460800
-READ_BYTES = 65536  # per poll: 2340 frames, far more than arrive between two 1 kHz ticks
+
+SampleRows = NDArray[np.void]
+"""Rows of SAMPLE_DTYPE: ``t_ns`` (the receive time), ``seq``, ``wrench`` (N, N*m)."""
 
 
-class FtSerial(Reader[FtSample]):
+class FtSerial(Reader[np.void]):
     """A Kunwei sensor on serial port ``port`` (a device path, or a pty path in tests)."""
 
     def __init__(
@@ -52,16 +57,21 @@ class FtSerial(Reader[FtSample]):
     ) -> None:
         self.port = port
         self._baudrate = baudrate
-        self._framer = KunweiFramer(framer_config)
+        self._framer = FtFrames(framer_config)
         self._stall_after_ns = round(stall_after_s * 1e9)
         self._restart_after_ns = round(restart_after_s * 1e9)
         self._backoff = Backoff(backoff_s)
         self._serial: serial.Serial | None = None
         self._fd = -1
         self._wanted = False  # between connect() and close(): poll reopens a lost link
-        self._unreturned: list[FtSample] = []  # read by connect(), returned by the next poll
+        self._none: SampleRows = np.zeros(0, dtype=SAMPLE_DTYPE)
+        self._unreturned = self._none  # read by connect(), returned by the next poll
         self._heard_ns = 0  # the last sample, or the last start command sent
-        self._latest: FtSample | None = None
+        self.newest = self._framer.newest
+        """The newest sample, one row the framer keeps current in place (its fields are views:
+        ``newest["wrench"][0]`` is always the newest wrench); meaningful once
+        :attr:`latest_t_ns` >= 0."""
+        self._latest_t_ns = -1
         self._samples = 0
         self._rate = RateMeter()
         self._stalled = False
@@ -87,7 +97,7 @@ class FtSerial(Reader[FtSample]):
         if first_sample_timeout_s is None:
             return
         deadline_ns = time.monotonic_ns() + round(first_sample_timeout_s * 1e9)
-        while not self._unreturned:
+        while not len(self._unreturned):
             left_ns = deadline_ns - time.monotonic_ns()
             if left_ns <= 0:
                 self.close()
@@ -96,12 +106,12 @@ class FtSerial(Reader[FtSample]):
                     f"of the start command ({self._framer.stats.bytes_in} bytes received)"
                 )
             wait_readable(self._fd, left_ns / 1e9)
-            self._unreturned = self.poll(time.monotonic_ns())
+            self._unreturned = self.poll(time.monotonic_ns()).copy()
 
     def close(self) -> None:
         """Send the stop command and close the port; poll no longer reopens it. Idempotent."""
         self._wanted = False
-        self._unreturned = []
+        self._unreturned = self._none
         if self._serial is not None:
             with contextlib.suppress(OSError):  # if the link is gone the sensor cannot hear us
                 os.write(self._fd, STOP_COMMAND)
@@ -124,8 +134,9 @@ class FtSerial(Reader[FtSample]):
         """The port's descriptor, -1 while it is closed."""
         return self._fd
 
-    def poll(self, now_ns: int) -> list[FtSample]:
-        """The samples read now (stamped ``now_ns``), oldest first; never blocks, never raises."""
+    def poll(self, now_ns: int) -> SampleRows:
+        """The samples read now (stamped ``now_ns``), oldest first, as rows the next poll reuses;
+        never blocks, never raises."""
         try:
             samples = self._pump(now_ns)
         except Exception as err:  # whatever happens (even a bug), the caller's loop carries on
@@ -133,17 +144,22 @@ class FtSerial(Reader[FtSample]):
             self._last_error = error_text(err)
             self._drop()
             self._backoff.failed(now_ns)
-            samples = []
-        if self._unreturned:
-            samples, self._unreturned = self._unreturned + samples, []
+            samples = self._none
+        if len(self._unreturned):
+            samples, self._unreturned = np.concatenate((self._unreturned, samples)), self._none
         return samples
 
-    def latest(self) -> FtSample | None:
-        return self._latest
+    def latest(self) -> np.void | None:
+        """The newest sample (a row of SAMPLE_DTYPE kept current in place: copy to keep it)."""
+        return None if self._latest_t_ns < 0 else self.newest[0]
+
+    @property
+    def latest_t_ns(self) -> int:
+        """The newest sample's receive time (monotonic ns); -1 before the first."""
+        return self._latest_t_ns
 
     def status(self) -> LinkStatus:
-        latest = self._latest
-        age_ns = None if latest is None else time.monotonic_ns() - latest.t_ns
+        age_ns = None if self._latest_t_ns < 0 else time.monotonic_ns() - self._latest_t_ns
         return LinkStatus(
             endpoint=self.port,
             connected=self.is_connected,
@@ -165,24 +181,26 @@ class FtSerial(Reader[FtSample]):
         duration_s: float = 0.1,
         *,
         timeout_s: float = 1.0,
-        on_sample: Callable[[FtSample], None] | None = None,
+        on_sample: Callable[[np.void], None] | None = None,
     ) -> NDArray[np.float64]:
         """Mean raw wrench (6,), N and N*m, of the samples polled over ``duration_s``: to tare.
 
         Blocks; not for the real-time loop. Every sample read (from the first one a previous
-        ``connect`` kept) goes to ``on_sample`` too, so the caller can record it. Raises
+        ``connect`` kept) goes to ``on_sample`` too (a copy of its row), so the caller can
+        record it. Raises
         :class:`~hilrig.errors.LinkError` if none arrives within ``max(duration_s, timeout_s)``.
         """
         start_ns = time.monotonic_ns()
         end_ns = start_ns + round(duration_s * 1e9)
         give_up_ns = start_ns + round(max(duration_s, timeout_s) * 1e9)
-        wrenches: list[tuple[float, ...]] = []
+        wrenches: list[list[float]] = []
         while True:
             now_ns = time.monotonic_ns()
-            for sample in self.poll(now_ns):
-                wrenches.append(sample.wrench_in_sensor)
-                if on_sample is not None:
-                    on_sample(sample)
+            rows = self.poll(now_ns)
+            wrenches += rows["wrench"].tolist()
+            if on_sample is not None:
+                for row in rows:
+                    on_sample(row.copy())
             if now_ns >= (end_ns if wrenches else give_up_ns):
                 break
             wait_readable(self._fd, ((end_ns if wrenches else give_up_ns) - now_ns) / 1e9)
@@ -206,26 +224,27 @@ class FtSerial(Reader[FtSample]):
             with contextlib.suppress(Exception):  # a broken port may fail to close too
                 port.close()
 
-    def _pump(self, now_ns: int) -> list[FtSample]:
+    def _pump(self, now_ns: int) -> SampleRows:
         """Reopen the port when due, read and frame; raises on a lost link."""
         if self._serial is None:
             if not (self._wanted and self._backoff.due(now_ns)):
-                return []
+                return self._none
             self._open(now_ns)
             self._backoff.succeeded()
             self._reconnects += 1
-        try:  # a tty set for timeout 0 reads b"" when empty; a lost one raises (EIO)
-            data = os.read(self._fd, READ_BYTES)
+        framer = self._framer
+        try:  # a tty set for timeout 0 reads nothing when empty; a lost one raises (EIO)
+            count = os.readv(self._fd, (framer.free,))
         except BlockingIOError:
-            data = b""
-        latest = self._latest
-        if latest is not None and not self._stalled and now_ns - latest.t_ns > self._stall_after_ns:
+            count = 0
+        latest_ns = self._latest_t_ns
+        if latest_ns >= 0 and not self._stalled and now_ns - latest_ns > self._stall_after_ns:
             self._stalled = True
             self._stalls += 1
-        samples = self._framer.feed(data, now_ns) if data else []
-        if samples:
-            self._latest = samples[-1]
-            self._samples += len(samples)
+        n = framer.feed(count, now_ns) if count else 0
+        if n:
+            self._latest_t_ns = now_ns
+            self._samples += n
             self._stalled = False
             self._heard_ns = now_ns
             self._rate.update(now_ns, self._samples)
@@ -233,4 +252,4 @@ class FtSerial(Reader[FtSample]):
             with contextlib.suppress(BlockingIOError):  # a full output buffer: next time
                 os.write(self._fd, START_COMMAND)
             self._heard_ns = now_ns
-        return samples
+        return framer.rows[:n] if n else self._none

@@ -24,6 +24,8 @@ import time
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import numpy as np
+
 HEADER = b"\x48\xaa"
 TAIL = b"\x0d\x0a"
 START_COMMAND = b"\x48\xaa\x0d\x0a"
@@ -37,6 +39,15 @@ _H0, _H1 = HEADER
 _T0, _T1 = TAIL
 
 Wrench = tuple[float, float, float, float, float, float]
+
+# One sample as a row (FtFrames, the loop's rings): an FtSample's fields
+SAMPLE_DTYPE = np.dtype(
+    [
+        ("t_ns", np.int64),  # host receive time (monotonic ns)
+        ("seq", np.int64),  # the driver's frame counter
+        ("wrench", np.float64, (6,)),  # Fx Fy Fz (N) Mx My Mz (N*m), sensor frame, as measured
+    ]
+)
 
 
 class FtSample(NamedTuple):

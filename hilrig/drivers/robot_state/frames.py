@@ -14,13 +14,13 @@ The reference decoder stays the protocol's readable definition and the tests' or
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import fields
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hilrig.compiled import njit
+from hilrig.drivers.compiled_decoder import CompiledDecoder
 from hilrig.drivers.robot_state.wire import (
     FRAME_BYTES,
     JOINTS,
@@ -32,12 +32,11 @@ from hilrig.drivers.robot_state.wire import (
     STATE_DTYPE,
     DecoderStats,
 )
-from hilrig.timing import bound_kernel
 
 RECV_BYTES = 65536  # what one feed takes at most: 385 frames, far more than arrive in a tick
 # the counters array: DecoderStats's fields in order, then the decoder's own state
 _COUNTERS = tuple(f.name for f in fields(DecoderStats))
-LAST_SEQUENCE, HELD = len(_COUNTERS), len(_COUNTERS) + 1  # -1: no frame since the last reset
+LAST_SEQUENCE = len(_COUNTERS)  # -1: no frame since the last reset; the held bytes' count next
 (
     _FRAMES,
     _CRC_ERRORS,
@@ -62,58 +61,32 @@ def _crc_table() -> NDArray[np.int64]:
     return table
 
 
-class StateFrames:
-    """A joint-state stream's decoder into :attr:`rows`; ``rows_capacity`` rows, enough for any
+class StateFrames(CompiledDecoder):
+    """A joint-state stream's decoder into :attr:`rows` of STATE_DTYPE, enough for any
     :data:`RECV_BYTES` fed at once."""
 
     def __init__(self) -> None:
-        self.rows = np.zeros(RECV_BYTES // FRAME_BYTES + 1, dtype=STATE_DTYPE)
-        """The frames of the last :meth:`feed` (its first ``n``), oldest first."""
-        self.newest = np.zeros(1, dtype=STATE_DTYPE)
-        """The newest frame ever decoded (its one row; zeros before the first)."""
-        self._buffer = np.zeros(FRAME_BYTES + RECV_BYTES, dtype=np.uint8)
-        self._memory = self._buffer.data
-        self._counters = np.zeros(len(_COUNTERS) + 2, dtype=np.int64)
-        self._counters[LAST_SEQUENCE] = -1
-        self._feed: Callable[[int, int], int] = bound_kernel(
+        super().__init__(
             decode,
-            self._buffer,
-            self.rows,
-            self.newest,
-            self._counters,
-            _crc_table(),
-            _MAGIC,
-            _LIMITS,
-            np.zeros(1, dtype=np.uint64),
-            last=(0, 0),
+            (_crc_table(), _MAGIC, _LIMITS, np.zeros(1, dtype=np.uint64)),
+            dtype=STATE_DTYPE,
+            counters=LAST_SEQUENCE + 1,
+            read_bytes=RECV_BYTES,
+            keep_bytes=FRAME_BYTES,
+            frame_bytes=FRAME_BYTES,
         )
-
-    @property
-    def free(self) -> memoryview:
-        """Where the next received bytes go (up to :data:`RECV_BYTES`): after those held."""
-        held = int(self._counters[HELD])
-        return self._memory[held : held + RECV_BYTES]
-
-    def feed(self, count: int, t_ns: int) -> int:
-        """Decode the ``count`` bytes just written into :attr:`free`; the frames completed are
-        ``rows[:n]`` stamped ``t_ns`` (n returned). A partial frame waits for more bytes."""
-        return self._feed(count, t_ns)
-
-    def feed_bytes(self, data: bytes, t_ns: int) -> int:
-        """:meth:`feed` of ``data`` (at most :data:`RECV_BYTES`), copied in: for tests and tools."""
-        self.free[: len(data)] = data
-        return self.feed(len(data), t_ns)
+        self.counters[LAST_SEQUENCE] = -1
 
     @property
     def stats(self) -> DecoderStats:
         """The counters since the decoder was made."""
-        values = self._counters.tolist()
+        values = self.counters.tolist()
         return DecoderStats(**dict(zip(_COUNTERS, values, strict=False)))
 
     def reset(self) -> None:
         """Forget held bytes and the last sequence (after a reconnect); keep the counters."""
-        self._counters[HELD] = 0
-        self._counters[LAST_SEQUENCE] = -1
+        self.forget_held()
+        self.counters[LAST_SEQUENCE] = -1
 
 
 @njit(cache=True)
@@ -132,7 +105,8 @@ def decode(
     """RobotStateDecoder.feed over ``buffer``'s held bytes and the ``count`` after them: frames
     into ``rows`` (returns how many), the newest also into ``newest``, the unused tail moved to
     the buffer's start."""
-    end = counters[HELD] + count
+    held_at = counters.shape[0] - 1
+    end = counters[held_at] + count
     start = 0
     n = 0
     while True:
@@ -157,7 +131,7 @@ def decode(
             start += 1
     for i in range(start, end):  # to the front, no copy made
         buffer[i - start] = buffer[i]
-    counters[HELD] = end - start
+    counters[held_at] = end - start
     if n:
         newest[0] = rows[n - 1]
     return n

@@ -1,0 +1,81 @@
+"""What the drivers' compiled stream decoders share: bytes received straight into their buffer,
+decoded by one bound kernel call into rows of a fixed dtype.
+
+A decoder (the joint-state stream's :class:`~hilrig.drivers.robot_state.frames.StateFrames`,
+the F/T sensor's :class:`~hilrig.drivers.ft.frames.FtFrames`) holds:
+
+- a byte buffer: the bytes a previous feed left (a frame's start) followed by the room
+  :attr:`~CompiledDecoder.free` the link reads into, up to ``read_bytes`` at a time;
+- ``rows``: the frames of the last feed (its first ``n``), each stamped with the receive time;
+- ``newest``: one row, the newest frame ever decoded, kept current in place;
+- int64 counters, the last of which is how many bytes the buffer holds from before.
+
+Its kernel is ``kernel(buffer, rows, newest, counters, *constants, count, t_ns) -> n``: it
+decodes the held bytes and the ``count`` new ones after them, writes the frames into
+``rows[:n]`` and the newest into ``newest``, and moves the bytes it keeps to the buffer's start.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hilrig.timing import bound_kernel
+
+
+class CompiledDecoder:
+    """The buffer, rows, counters and bound kernel of a compiled stream decoder."""
+
+    def __init__(
+        self,
+        kernel: Any,
+        constants: tuple[Any, ...],
+        *,
+        dtype: np.dtype[Any],
+        counters: int,
+        read_bytes: int,
+        keep_bytes: int,
+        frame_bytes: int,
+    ) -> None:
+        """``counters`` the decoder's own (the held count comes after them); at most
+        ``keep_bytes`` are kept between feeds; a frame is at least ``frame_bytes``."""
+        self.read_bytes = read_bytes
+        self.rows = np.zeros((keep_bytes + read_bytes) // frame_bytes + 1, dtype=dtype)
+        """The frames of the last :meth:`feed` (its first ``n``), oldest first."""
+        self.newest = np.zeros(1, dtype=dtype)
+        """The newest frame ever decoded (its one row; zeros before the first)."""
+        self._buffer = np.zeros(keep_bytes + read_bytes, dtype=np.uint8)
+        self._memory = self._buffer.data
+        self.counters: NDArray[np.int64] = np.zeros(counters + 1, dtype=np.int64)
+        self._held = counters
+        self._feed: Callable[[int, int], int] = bound_kernel(
+            kernel, self._buffer, self.rows, self.newest, self.counters, *constants, last=(0, 0)
+        )
+
+    @property
+    def free(self) -> memoryview:
+        """Where the next received bytes go (up to ``read_bytes``): after those held."""
+        held = int(self.counters[self._held])
+        return self._memory[held : held + self.read_bytes]
+
+    @property
+    def held(self) -> int:
+        """Bytes kept from earlier feeds: the start of a frame still on its way."""
+        return int(self.counters[self._held])
+
+    def feed(self, count: int, t_ns: int) -> int:
+        """Decode the ``count`` bytes just written into :attr:`free`; the frames completed are
+        ``rows[:n]`` stamped ``t_ns`` (n returned). A partial frame waits for more bytes."""
+        return self._feed(count, t_ns)
+
+    def feed_bytes(self, data: bytes, t_ns: int) -> int:
+        """:meth:`feed` of ``data`` (at most ``read_bytes``), copied in: for tests and tools."""
+        self.free[: len(data)] = data
+        return self.feed(len(data), t_ns)
+
+    def forget_held(self) -> None:
+        """Drop the bytes held from earlier feeds (after a reconnect), uncounted."""
+        self.counters[self._held] = 0
