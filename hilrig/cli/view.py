@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -126,8 +127,8 @@ def _show(console: Console, sink: Sink, scene: Scene, max_points: int, max_poses
         _flush(rec, sink)
         _print_report(console, report, scene.source)
         if server is not None:
-            console.print(f"web viewer: {server.url}  (Ctrl-C to stop)")
-            _wait_for_interrupt()
+            url = server.url
+            _wait_for_interrupt(lambda: console.print(f"web viewer: {url}  (Ctrl-C to stop)"))
     finally:
         rec.disconnect()  # a file is finished (and closed) here
         if server is not None:
@@ -193,8 +194,9 @@ def _print_report(console: Console, report: ViewReport, source: str) -> None:
         )
 
 
-def _wait_for_interrupt() -> None:
-    """Block until Ctrl-C or SIGTERM."""
+def _wait_for_interrupt(announce: Callable[[], None]) -> None:
+    """Block until Ctrl-C or SIGTERM; ``announce()`` once they are caught (a Ctrl-C right after
+    the announcement ends the wait, it does not interrupt what comes before)."""
     import signal
     import threading
     from types import FrameType
@@ -206,6 +208,7 @@ def _wait_for_interrupt() -> None:
 
     previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
+        announce()
         while not done.wait(0.5):
             pass
     finally:

@@ -107,6 +107,23 @@ def test_connect_streams_to_a_running_rerun_server(tmp_path: Path) -> None:
     assert any(v.kind == "3D" for v in rrd.views())
 
 
+def test_a_ctrl_c_right_after_the_web_viewer_line_ends_the_wait_and_nothing_else() -> None:
+    """The line is printed once Ctrl-C is caught: a Ctrl-C at once (a test that reads the line
+    and signals, on a loaded machine) ends the wait cleanly instead of interrupting the command
+    (exit 130, as CI saw)."""
+    from hilrig.cli.view import _wait_for_interrupt
+
+    announced = []
+
+    def announce() -> None:
+        announced.append(True)
+        os.kill(os.getpid(), signal.SIGINT)  # delivered before announce returns
+
+    _wait_for_interrupt(announce)  # returns: no KeyboardInterrupt
+    assert announced == [True]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
+
+
 def test_web_serves_the_viewer_on_localhost_until_interrupted() -> None:
     port, web_port = free_port(), free_port()
     view = subprocess.Popen(
