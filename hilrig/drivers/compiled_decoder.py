@@ -61,11 +61,6 @@ class CompiledDecoder:
         held = int(self.counters[self._held])
         return self._memory[held : held + self.read_bytes]
 
-    @property
-    def held(self) -> int:
-        """Bytes kept from earlier feeds: the start of a frame still on its way."""
-        return int(self.counters[self._held])
-
     def feed(self, count: int, t_ns: int) -> int:
         """Decode the ``count`` bytes just written into :attr:`free`; the frames completed are
         ``rows[:n]`` stamped ``t_ns`` (n returned). A partial frame waits for more bytes."""
