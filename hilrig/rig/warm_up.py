@@ -5,9 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from hilrig.control import combine, make, preset
+from hilrig.drivers.ft.frames import FtFrames
 from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.drivers.joint_targets.frame import RequestFrame
 from hilrig.drivers.joint_targets.wire import Mode, RegisterMap
+from hilrig.drivers.robot_state.frames import StateFrames
 from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.rig.records import AXES, TICK_DTYPE
 from hilrig.rig.rings import Ring, RingSpec
@@ -15,25 +17,34 @@ from hilrig.robot import RobotModel
 from hilrig.tick.kernel import COMMAND_OK, ROBOT_OK, SENSOR_OK, CompiledTick
 from hilrig.tick.safety import SafetyClamp, SafetyConfig
 from hilrig.tick.trajectory import make_trajectory
+from hilrig.tick.trajectory_kernel import desired_writer
+from hilrig.timing import LatencyHistogram
 
 
 def warm_up() -> None:
-    """Load (or compile) the tick's kernels and the Modbus request's, and run them once on a
-    throwaway state built like a session's (rows in a shared-memory ring: numba compiles per
-    array type), so that no first-call cost lands between the devices' first bytes and the
-    session's first ticks (a fresh clone compiles them all here)."""
+    """Load (or compile) every kernel the session's thread runs once its devices talk (the
+    tick's, the task trajectory's samplers, the drivers' decoders, the Modbus request's, the
+    loop's latency histograms) and run them once on a throwaway state built like a session's
+    (rows in a shared-memory ring: numba compiles per array type), so that no first-call cost
+    lands between the devices' first bytes and the session's first ticks (a fresh clone compiles
+    them all here; ``tests/rig/test_warm_up.py`` checks that nothing is left)."""
     model = RobotModel()
     q0 = np.asarray(HOME_Q_RAD, dtype=np.float64)
     controller = make("adaptive", combine((preset("adaptive"), 3), (preset("adaptive-joint"), 6)))
     clamp = SafetyClamp(SafetyConfig(), model, q0)
     tick = CompiledTick.build(controller, model, clamp, GravityCompensator(), q0, 0.001)
-    trajectory = make_trajectory("hold", model.fk(q0))
+    start = model.fk(q0)
+    trajectory = make_trajectory("hold", start)
     position = np.zeros(3)
-    trajectory.desired(0.0, position)
+    desired_writer(make_trajectory("circle", start), position)(0.0)  # the circle's sampler
+    desired_writer(trajectory, position)(0.0)  # the waypoints' (square, hold)
     zeros6 = np.zeros(6)
     flags = SENSOR_OK | ROBOT_OK | COMMAND_OK
     tick.run(flags, zeros6, q0, zeros6, np.zeros(AXES), position, trajectory.rotation)
     RequestFrame(RegisterMap()).fill(q0, 0, Mode.HOLD)  # the Modbus request's kernels
+    FtFrames()  # the drivers' decoders compile as they are made
+    StateFrames()
+    LatencyHistogram().add(0)
     ring = Ring.create(RingSpec.unique("warm", TICK_DTYPE, 2))
     try:
         write_row = tick.row_writer(ring.rows)
