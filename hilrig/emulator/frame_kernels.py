@@ -20,35 +20,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hilrig.compiled import njit
+from hilrig.drivers.robot_state.crc import crc32
 
 if sys.byteorder != "little":  # pragma: no cover - every platform hilrig runs on
     raise ImportError("hilrig.emulator.frame_kernels writes little-endian frames natively")
 
 F64 = NDArray[np.float64]
 U8 = NDArray[np.uint8]
-
-
-def _crc_table() -> NDArray[np.uint32]:
-    """zlib's CRC-32 (reflected polynomial 0xEDB88320) table, one entry per byte."""
-    table = np.empty(256, dtype=np.uint32)
-    for n in range(256):
-        c = n
-        for _ in range(8):
-            c = (c >> 1) ^ 0xEDB88320 if c & 1 else c >> 1
-        table[n] = c
-    return table
-
-
-CRC_TABLE = _crc_table()
-
-
-@njit(cache=True)
-def crc32(data: U8, n: int) -> int:
-    """zlib.crc32 of ``data[:n]``."""
-    c = np.uint32(0xFFFFFFFF)
-    for i in range(n):
-        c = CRC_TABLE[(c ^ data[i]) & 0xFF] ^ (c >> np.uint32(8))
-    return int(c ^ np.uint32(0xFFFFFFFF))
 
 
 @njit(cache=True)

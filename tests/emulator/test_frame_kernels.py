@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hilrig.drivers.ft.wire import FRAME, HEADER, TAIL
+from hilrig.drivers.robot_state.crc import crc32
 from hilrig.drivers.robot_state.wire import (
     FRAME_BYTES,
     LENGTH,
@@ -17,7 +18,7 @@ from hilrig.drivers.robot_state.wire import (
     RobotStatus,
     encode,
 )
-from hilrig.emulator.frame_kernels import crc32, ft_frame_into, state_frame_into
+from hilrig.emulator.frame_kernels import ft_frame_into, state_frame_into
 
 FINITE = st.floats(-1e6, 1e6, allow_nan=False)
 SIX = st.lists(FINITE, min_size=6, max_size=6)

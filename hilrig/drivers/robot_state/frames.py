@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from hilrig.compiled import njit
 from hilrig.drivers.compiled_decoder import CompiledDecoder
+from hilrig.drivers.robot_state.crc import crc32
 from hilrig.drivers.robot_state.wire import (
     FRAME_BYTES,
     JOINTS,
@@ -53,14 +54,6 @@ _Q_AT = 18  # then qd and torque, 48 bytes each; status at 162 (docs/protocols.m
 _LIMITS = np.array([MAX_ABS_Q_RAD, MAX_ABS_QD_RAD_S, MAX_ABS_TORQUE_NM])
 
 
-def _crc_table() -> NDArray[np.int64]:
-    """The CRC-32 (zlib's reflected polynomial) of every byte value, for a byte at a time."""
-    table = np.arange(256, dtype=np.int64)
-    for _ in range(8):
-        table = np.where(table & 1, (table >> 1) ^ 0xEDB88320, table >> 1)
-    return table
-
-
 class StateFrames(CompiledDecoder):
     """A joint-state stream's decoder into :attr:`rows` of STATE_DTYPE, enough for any
     :data:`RECV_BYTES` fed at once."""
@@ -68,7 +61,7 @@ class StateFrames(CompiledDecoder):
     def __init__(self) -> None:
         super().__init__(
             decode,
-            (_crc_table(), _MAGIC, _LIMITS, np.zeros(1, dtype=np.uint64)),
+            (_MAGIC, _LIMITS, np.zeros(1, dtype=np.uint64)),
             dtype=STATE_DTYPE,
             counters=LAST_SEQUENCE + 1,
             read_bytes=RECV_BYTES,
@@ -95,7 +88,6 @@ def decode(
     rows: NDArray[np.void],
     newest: NDArray[np.void],
     counters: NDArray[np.int64],
-    crc_table: NDArray[np.int64],
     magic: NDArray[np.uint8],
     limits: NDArray[np.float64],
     bits: NDArray[np.uint64],
@@ -121,7 +113,7 @@ def decode(
         start = at
         if end - start < FRAME_BYTES:
             break
-        if _parse(buffer, start, rows, n, counters, crc_table, limits, bits):
+        if _parse(buffer, start, rows, n, counters, limits, bits):
             rows[n].t_ns = t_ns
             n += 1
             start += FRAME_BYTES
@@ -174,7 +166,6 @@ def _parse(
     rows: NDArray[np.void],
     n: int,
     counters: NDArray[np.int64],
-    crc_table: NDArray[np.int64],
     limits: NDArray[np.float64],
     bits: NDArray[np.uint64],
 ) -> bool:
@@ -184,10 +175,7 @@ def _parse(
     if _unsigned(buffer, at + 4, 2) != LENGTH:
         counters[_LENGTH_ERRORS] += 1
         return False
-    crc = 0xFFFFFFFF
-    for i in range(at, at + _CRC_AT):
-        crc = crc_table[(crc ^ buffer[i]) & 0xFF] ^ (crc >> 8)
-    if crc ^ 0xFFFFFFFF != _unsigned(buffer, at + _CRC_AT, 4):
+    if crc32(buffer[at:], _CRC_AT) != _unsigned(buffer, at + _CRC_AT, 4):
         counters[_CRC_ERRORS] += 1
         return False
     floats = bits.view(np.float64)
