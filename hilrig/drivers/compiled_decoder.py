@@ -12,7 +12,9 @@ the F/T sensor's :class:`~hilrig.drivers.ft.frames.FtFrames`) holds:
 
 Its kernel is ``kernel(buffer, rows, newest, counters, *constants, count, t_ns) -> n``: it
 decodes the held bytes and the ``count`` new ones after them, writes the frames into
-``rows[:n]`` and the newest into ``newest``, and moves the bytes it keeps to the buffer's start.
+``rows[:n]`` and ends with :func:`finish` (the newest into ``newest``, the bytes it keeps moved
+to the buffer's start). :func:`find` and :func:`unsigned_le` are the kernels' other shared
+parts.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hilrig.compiled import njit
 from hilrig.timing import bound_kernel
 
 
@@ -74,3 +77,44 @@ class CompiledDecoder:
     def forget_held(self) -> None:
         """Drop the bytes held from earlier feeds (after a reconnect), uncounted."""
         self.counters[self._held] = 0
+
+
+@njit(cache=True, inline="always")
+def find(buffer: NDArray[np.uint8], marker: NDArray[np.uint8], start: int, end: int) -> int:
+    """The first index >= ``start`` where ``marker`` lies whole before ``end``; -1 if none."""
+    for at in range(start, end - marker.shape[0] + 1):
+        k = 0
+        while k < marker.shape[0] and buffer[at + k] == marker[k]:
+            k += 1
+        if k == marker.shape[0]:
+            return at
+    return -1
+
+
+@njit(cache=True, inline="always")
+def unsigned_le(buffer: NDArray[np.uint8], at: int, size: int) -> int:
+    """The little-endian unsigned integer of ``size`` (<= 4) bytes at ``at``."""
+    value = 0
+    for k in range(size):
+        value |= int(buffer[at + k]) << (8 * k)
+    return value
+
+
+@njit(cache=True, inline="always")
+def finish(
+    buffer: NDArray[np.uint8],
+    rows: NDArray[np.void],
+    newest: NDArray[np.void],
+    counters: NDArray[np.int64],
+    start: int,
+    end: int,
+    n: int,
+) -> int:
+    """A feed's end: ``buffer[start:end]`` (the bytes kept) moved to its start and counted as
+    held (the counters' last), the newest of the ``n`` rows into ``newest``; returns ``n``."""
+    for i in range(start, end):  # to the front, no copy made
+        buffer[i - start] = buffer[i]
+    counters[counters.shape[0] - 1] = end - start
+    if n:
+        newest[0] = rows[n - 1]
+    return n

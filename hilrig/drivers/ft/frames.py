@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hilrig.compiled import njit
-from hilrig.drivers.compiled_decoder import CompiledDecoder
+from hilrig.drivers.compiled_decoder import CompiledDecoder, find, finish, unsigned_le
 from hilrig.drivers.ft.wire import (
     FRAME_BYTES,
     HEADER,
@@ -33,6 +33,7 @@ READ_BYTES = 65536  # what one feed takes at most: 2340 frames
 # the counters array, then the held bytes' count
 BYTES_IN, FRAMES, REJECTED, RESYNCS, DROPPED, LOCKED = range(6)
 _H0, _H1 = HEADER
+_HEADER = np.frombuffer(HEADER, dtype=np.uint8).copy()
 _T0, _T1 = TAIL
 
 
@@ -77,9 +78,8 @@ def frame(
 ) -> int:
     """KunweiFramer.feed over ``buffer``'s held bytes and the ``count`` after them: samples into
     ``rows`` (returns how many), the newest also into ``newest``, the rest moved to the start."""
-    held_at = counters.shape[0] - 1
     counters[BYTES_IN] += count
-    end = counters[held_at] + count
+    end = counters[counters.shape[0] - 1] + count  # after the bytes held
     locked = counters[LOCKED] != 0
     pos = 0
     n = 0
@@ -98,7 +98,7 @@ def frame(
             counters[RESYNCS] += 1
             counters[DROPPED] += 1  # pos is not a frame start
             pos += 1
-        at = _find_header(buffer, pos, end)
+        at = find(buffer, _HEADER, pos, end)
         if at < 0:
             keep = 1 if end > pos and buffer[end - 1] == _H0 else 0  # half a header
             counters[DROPPED] += end - keep - pos
@@ -117,13 +117,8 @@ def frame(
             continue
         counters[DROPPED] += 1
         pos += 1
-    for i in range(pos, end):  # to the front, no copy made
-        buffer[i - pos] = buffer[i]
-    counters[held_at] = end - pos
     counters[LOCKED] = 1 if locked else 0
-    if n:
-        newest[0] = rows[n - 1]
-    return n
+    return finish(buffer, rows, newest, counters, pos, end, n)
 
 
 @njit(cache=True, inline="always")
@@ -136,15 +131,6 @@ def _framed(buffer: NDArray[np.uint8], pos: int, next_header: bool) -> bool:
         and buffer[at] == _H0
         and buffer[at + 1] == _H1
     )
-
-
-@njit(cache=True, inline="always")
-def _find_header(buffer: NDArray[np.uint8], start: int, end: int) -> int:
-    """The first index >= ``start`` where the header lies whole before ``end``; -1 if none."""
-    for at in range(start, end - 1):
-        if buffer[at] == _H0 and buffer[at + 1] == _H1:
-            return at
-    return -1
 
 
 @njit(cache=True)
@@ -163,11 +149,7 @@ def _sample(
     row = rows[n]
     floats = bits.view(np.float32)
     for j in range(6):
-        at = pos + 2 + 4 * j
-        value = 0
-        for k in range(4):
-            value |= int(buffer[at + k]) << (8 * k)
-        bits[0] = value
+        bits[0] = unsigned_le(buffer, pos + 2 + 4 * j, 4)
         scaled = np.float64(floats[0]) * limits[0]
         if not abs(scaled) <= limits[1 if j < 3 else 2]:  # NaN too
             return False

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hilrig.compiled import njit
-from hilrig.drivers.compiled_decoder import CompiledDecoder
+from hilrig.drivers.compiled_decoder import CompiledDecoder, find, finish, unsigned_le
 from hilrig.drivers.robot_state.crc import crc32
 from hilrig.drivers.robot_state.wire import (
     FRAME_BYTES,
@@ -97,12 +97,11 @@ def decode(
     """RobotStateDecoder.feed over ``buffer``'s held bytes and the ``count`` after them: frames
     into ``rows`` (returns how many), the newest also into ``newest``, the unused tail moved to
     the buffer's start."""
-    held_at = counters.shape[0] - 1
-    end = counters[held_at] + count
+    end = counters[counters.shape[0] - 1] + count  # after the bytes held
     start = 0
     n = 0
     while True:
-        at = _find(buffer, magic, start, end)
+        at = find(buffer, magic, start, end)
         if at < 0:  # keep a tail that may be the start of a magic split across reads
             keep = end - (magic.shape[0] - 1)
             if keep > start:
@@ -121,33 +120,7 @@ def decode(
             counters[_RESYNCS] += 1
             counters[_DROPPED] += 1
             start += 1
-    for i in range(start, end):  # to the front, no copy made
-        buffer[i - start] = buffer[i]
-    counters[held_at] = end - start
-    if n:
-        newest[0] = rows[n - 1]
-    return n
-
-
-@njit(cache=True, inline="always")
-def _find(buffer: NDArray[np.uint8], magic: NDArray[np.uint8], start: int, end: int) -> int:
-    """The first index >= ``start`` where ``magic`` lies whole before ``end``; -1 if none."""
-    for at in range(start, end - magic.shape[0] + 1):
-        k = 0
-        while k < magic.shape[0] and buffer[at + k] == magic[k]:
-            k += 1
-        if k == magic.shape[0]:
-            return at
-    return -1
-
-
-@njit(cache=True, inline="always")
-def _unsigned(buffer: NDArray[np.uint8], at: int, size: int) -> int:
-    """The little-endian unsigned integer of ``size`` (<= 4) bytes at ``at``."""
-    value = 0
-    for k in range(size):
-        value |= int(buffer[at + k]) << (8 * k)
-    return value
+    return finish(buffer, rows, newest, counters, start, end, n)
 
 
 @njit(cache=True, inline="always")
@@ -172,10 +145,10 @@ def _parse(
     """The frame at ``at`` into ``rows[n]`` (but its t_ns) if length, CRC and values pass,
     counted as RobotStateDecoder._parse counts; whether it did."""
     row = rows[n]
-    if _unsigned(buffer, at + 4, 2) != LENGTH:
+    if unsigned_le(buffer, at + 4, 2) != LENGTH:
         counters[_LENGTH_ERRORS] += 1
         return False
-    if crc32(buffer[at:], _CRC_AT) != _unsigned(buffer, at + _CRC_AT, 4):
+    if crc32(buffer[at:], _CRC_AT) != unsigned_le(buffer, at + _CRC_AT, 4):
         counters[_CRC_ERRORS] += 1
         return False
     floats = bits.view(np.float64)
@@ -191,11 +164,11 @@ def _parse(
             row.qd[j - JOINTS] = value
         else:
             row.tau[j - 2 * JOINTS] = value
-    sequence = _unsigned(buffer, at + 6, 4)
+    sequence = unsigned_le(buffer, at + 6, 4)
     _bits64(buffer, at + 10, bits)
     row.device_t_ns = bits.view(np.int64)[0]
     row.seq = sequence
-    row.status = _unsigned(buffer, at + _Q_AT + 8 * 3 * JOINTS, 4)
+    row.status = unsigned_le(buffer, at + _Q_AT + 8 * 3 * JOINTS, 4)
     last = counters[LAST_SEQUENCE]
     if last >= 0:
         step = (sequence - last) & 0xFFFFFFFF
