@@ -8,13 +8,16 @@ the F/T sensor's :class:`~hilrig.drivers.ft.frames.FtFrames`) holds:
   :attr:`~CompiledDecoder.free` the link reads into, up to ``read_bytes`` at a time;
 - ``rows``: the frames of the last feed (its first ``n``), each stamped with the receive time;
 - ``newest``: one row, the newest frame ever decoded, kept current in place;
-- int64 counters, the last of which is how many bytes the buffer holds from before.
+- int64 counters, the last of which is how many bytes the buffer holds from before;
+- ``io``: the bytes its receiver has read and the last read's result (:mod:`.sys_read`).
 
 Its kernel is ``kernel(buffer, rows, newest, counters, *constants, count, t_ns) -> n``: it
 decodes the held bytes and the ``count`` new ones after them, writes the frames into
 ``rows[:n]`` and ends with :func:`finish` (the newest into ``newest``, the bytes it keeps moved
 to the buffer's start). :func:`find` and :func:`unsigned_le` are the kernels' other shared
-parts.
+parts. Its receiver ``receiver(buffer, rows, newest, counters, *constants, io, fd, t_ns) -> n``
+reads what waits on a link's descriptor into the buffer (:func:`~.sys_read.read_into`) and calls
+the kernel on it: the drivers' loop reads and decodes a link with one call.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hilrig.compiled import njit
+from hilrig.drivers.sys_read import IO_WORDS, LAST_READ
 from hilrig.timing import bound_kernel
 
 
@@ -35,6 +39,7 @@ class CompiledDecoder:
     def __init__(
         self,
         kernel: Any,
+        receiver: Any,
         constants: tuple[Any, ...],
         *,
         dtype: np.dtype[Any],
@@ -54,9 +59,15 @@ class CompiledDecoder:
         self._memory = self._buffer.data
         self.counters: NDArray[np.int64] = np.zeros(counters + 1, dtype=np.int64)
         self._held = counters
-        self._feed: Callable[[int, int], int] = bound_kernel(
-            kernel, self._buffer, self.rows, self.newest, self.counters, *constants, last=(0, 0)
+        self.io: NDArray[np.int64] = np.zeros(IO_WORDS, dtype=np.int64)
+        arrays = (self._buffer, self.rows, self.newest, self.counters, *constants)
+        self._feed: Callable[[int, int], int] = bound_kernel(kernel, *arrays, last=(0, 0))
+        self.receive: Callable[[int, int], int] = bound_kernel(
+            receiver, *arrays, self.io, last=(0, 0)
         )
+        """``receive(fd, t_ns) -> n``: read(2) what waits on ``fd`` (non-blocking) into
+        :attr:`free` and decode it, in one compiled call; the frames are ``rows[:n]`` stamped
+        ``t_ns``, and :attr:`last_read` says what the read got."""
 
     @property
     def free(self) -> memoryview:
@@ -68,6 +79,12 @@ class CompiledDecoder:
         """Decode the ``count`` bytes just written into :attr:`free`; the frames completed are
         ``rows[:n]`` stamped ``t_ns`` (n returned). A partial frame waits for more bytes."""
         return self._feed(count, t_ns)
+
+    @property
+    def last_read(self) -> int:
+        """What the last :attr:`receive` read: bytes (0 at a stream's end, or from an empty tty
+        set for timeout 0), or ``-errno`` (:func:`~.sys_read.read_error`)."""
+        return int(self.io[LAST_READ])
 
     def feed_bytes(self, data: bytes, t_ns: int) -> int:
         """:meth:`feed` of ``data`` (at most ``read_bytes``), copied in: for tests and tools."""

@@ -187,15 +187,15 @@ def test_link_drop_is_detected_and_the_driver_reconnects_and_restarts(
 def test_no_exception_escapes_poll(sensor: FtSerial, monkeypatch: pytest.MonkeyPatch) -> None:
     samples_after(sensor, 5)
     framer = sensor._framer
-    real_feed = framer.feed
+    real_receive = framer.receive
     calls = iter(range(10**9))
 
-    def failing_once(count: int, t_ns: int) -> int:
+    def failing_once(fd: int, t_ns: int) -> int:
         if next(calls) == 0:
             raise RuntimeError("bug in the framer")
-        return real_feed(count, t_ns)
+        return real_receive(fd, t_ns)
 
-    monkeypatch.setattr(framer, "feed", failing_once)
+    monkeypatch.setattr(framer, "receive", failing_once)
     poll_until(lambda: sensor.status().errors == 1, sensor)
     samples_after(sensor, 20)  # poll reopened the port and reads on
     assert sensor.status().last_error == "RuntimeError: bug in the framer"

@@ -5,15 +5,26 @@ is reached, with a generous deadline; nothing asserts on timing.
 """
 
 import socket
+import struct
 import threading
 import time
 from typing import Any
 
+import numpy as np
 from polling import poll_for, poll_until
 from state_rows import as_state
 
 from hilrig.drivers.robot_state.link import RobotStateClient
-from hilrig.drivers.robot_state.wire import MAGIC, RobotState, RobotStatus, encode
+from hilrig.drivers.robot_state.wire import (
+    FRAME_BYTES,
+    MAGIC,
+    STATE_DTYPE,
+    DecoderStats,
+    RobotState,
+    RobotStateDecoder,
+    RobotStatus,
+    encode,
+)
 from hilrig.emulator.robot_state_server import EmulatedRobotStateServer
 from hilrig.errors import LinkError
 
@@ -151,3 +162,72 @@ def test_connect_fails_clearly_when_no_robot_answers() -> None:
     else:
         raise AssertionError("no error")
     assert not client.is_connected
+
+
+class PythonRows:
+    """A decoder in plain Python (the shape a real controller's format plugs in with): the
+    reference decoder's frames as rows of STATE_DTYPE."""
+
+    def __init__(self) -> None:
+        self._decoder = RobotStateDecoder()
+        self._buffer = bytearray(4096)
+        self.rows = np.zeros(64, dtype=STATE_DTYPE)
+        self.newest = np.zeros(1, dtype=STATE_DTYPE)
+
+    @property
+    def free(self) -> memoryview:
+        return memoryview(self._buffer)
+
+    def feed(self, count: int, t_ns: int) -> int:
+        frames = self._decoder.feed(bytes(self._buffer[:count]))
+        for n, frame in enumerate(frames):
+            self.rows[n] = (
+                t_ns,
+                frame.device_t_ns,
+                frame.sequence,
+                frame.q_rad,
+                frame.qd_rad_s,
+                frame.torque_nm,
+                int(frame.status),
+            )
+        if frames:
+            self.newest[0] = self.rows[len(frames) - 1]
+        return len(frames)
+
+    @property
+    def stats(self) -> DecoderStats:
+        return self._decoder.stats
+
+    def reset(self) -> None:
+        self._decoder = RobotStateDecoder()
+
+
+def test_a_decoder_in_python_plugs_in_through_free_and_feed() -> None:
+    received: list[Any] = []
+    with EmulatedRobotStateServer(source) as server:
+        client = RobotStateClient("127.0.0.1", server.port, decoder_factory=PythonRows)
+        with client:
+            poll_until(lambda: len(received) >= 20, client, sink=received)
+            states = [as_state(r) for r in received]
+            assert states == [source(s.sequence) for s in states]
+            assert client.bytes_received >= FRAME_BYTES * 20
+            assert client.latest_t_ns == int(received[-1]["t_ns"])
+            server.drop_links()
+            poll_until(lambda: client.errors == 1, client)
+    assert client.last_error == f"robot state tcp://127.0.0.1:{server.port}: closed by the robot"
+
+
+def test_a_reset_link_is_counted_with_the_system_s_error() -> None:
+    with socket.create_server(("127.0.0.1", 0)) as listener:
+        client = RobotStateClient("127.0.0.1", listener.getsockname()[1], backoff_s=(10, 10))
+        client.connect(first_frame_timeout_s=None)
+        peer, _ = listener.accept()
+        received: list[Any] = []
+        peer.sendall(encode(source(1)))
+        poll_until(lambda: len(received) == 1, client, sink=received)
+        peer.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        peer.close()  # with a zero linger: a reset, so the client's read fails (ECONNRESET)
+        poll_until(lambda: client.errors == 1, client)
+        assert client.last_error == "ConnectionResetError: [Errno 104] Connection reset by peer"
+        assert not client.is_connected
+        client.close()

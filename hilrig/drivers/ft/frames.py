@@ -11,6 +11,7 @@ The reference framer stays the protocol's readable definition and the tests' ora
     frames = FtFrames(FramerConfig())
     count = os.readv(fd, [frames.free])       # the bytes go straight into its buffer
     n = frames.feed(count, now_ns)            # frames.rows[:n] are the samples completed now
+    n = frames.receive(fd, now_ns)            # or both in one compiled call (read(2))
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from hilrig.drivers.ft.wire import (
     FramerConfig,
     FramerStats,
 )
+from hilrig.drivers.sys_read import read_into
 
 READ_BYTES = 65536  # what one feed takes at most: 2340 frames
 # the counters array, then the held bytes' count
@@ -45,6 +47,7 @@ class FtFrames(CompiledDecoder):
         limits = (self.config.kgf_scale, self.config.max_abs_force_n, self.config.max_abs_torque_nm)
         super().__init__(
             frame,
+            receive,
             (np.array(limits), np.zeros(1, dtype=np.uint32)),
             dtype=SAMPLE_DTYPE,
             counters=LOCKED + 1,
@@ -119,6 +122,23 @@ def frame(
         pos += 1
     counters[LOCKED] = 1 if locked else 0
     return finish(buffer, rows, newest, counters, pos, end, n)
+
+
+@njit(cache=True)
+def receive(
+    buffer: NDArray[np.uint8],
+    rows: NDArray[np.void],
+    newest: NDArray[np.void],
+    counters: NDArray[np.int64],
+    limits: NDArray[np.float64],
+    bits: NDArray[np.uint32],
+    io: NDArray[np.int64],
+    fd: int,
+    t_ns: int,
+) -> int:
+    """read(2) from ``fd`` into the buffer after the held bytes, then :func:`frame` them."""
+    count = read_into(fd, buffer, counters[counters.shape[0] - 1], READ_BYTES, io)
+    return frame(buffer, rows, newest, counters, limits, bits, count, t_ns) if count > 0 else 0
 
 
 @njit(cache=True, inline="always")

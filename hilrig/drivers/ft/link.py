@@ -2,9 +2,9 @@
 
 ``connect()`` opens the port (460800 8N1 by default), sends the start command and waits for the
 first frame (blocking, not for the real-time loop). Then the loop selects on ``fileno()`` and
-calls ``poll(now_ns)``: one non-blocking read of everything waiting (straight into the
-framer's buffer), framed by one compiled call (:class:`~hilrig.drivers.ft.frames.FtFrames`, the
-twin of :class:`~hilrig.drivers.ft.wire.KunweiFramer`) and returned as rows of
+calls ``poll(now_ns)``: one non-blocking read(2) of everything waiting, straight into the
+framer's buffer and framed by the same compiled call (:class:`~hilrig.drivers.ft.frames.FtFrames`,
+the twin of :class:`~hilrig.drivers.ft.wire.KunweiFramer`), returned as rows of
 :data:`~hilrig.drivers.ft.wire.SAMPLE_DTYPE` stamped ``now_ns``, in the framer's own array
 (valid until the next poll: copy what you keep; those read while connecting come first in the
 first poll). ``poll`` never raises: an error is
@@ -34,6 +34,7 @@ from hilrig.drivers.ft.wire import (
     FramerStats,
 )
 from hilrig.drivers.reconnect import Backoff
+from hilrig.drivers.sys_read import read_error
 from hilrig.errors import LinkError
 
 DEFAULT_BAUDRATE = 460800
@@ -233,15 +234,15 @@ class FtSerial(Reader[np.void]):
             self._backoff.succeeded()
             self._reconnects += 1
         framer = self._framer
-        try:  # a tty set for timeout 0 reads nothing when empty; a lost one raises (EIO)
-            count = os.readv(self._fd, (framer.free,))
-        except BlockingIOError:
-            count = 0
+        # read(2) and framing in one compiled call; a tty set for timeout 0 reads nothing when
+        # empty, a lost one fails (EIO)
+        n = framer.receive(self._fd, now_ns)
+        if not n and (error := read_error(framer.last_read)) is not None:
+            raise error
         latest_ns = self._latest_t_ns
         if latest_ns >= 0 and not self._stalled and now_ns - latest_ns > self._stall_after_ns:
             self._stalled = True
             self._stalls += 1
-        n = framer.feed(count, now_ns) if count else 0
         if n:
             self._latest_t_ns = now_ns
             self._samples += n

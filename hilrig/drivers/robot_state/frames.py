@@ -10,6 +10,7 @@ The reference decoder stays the protocol's readable definition and the tests' or
     frames = StateFrames()
     count = sock.recv_into(frames.free)       # the bytes go straight into its buffer
     n = frames.feed(count, now_ns)            # frames.rows[:n] are the frames completed now
+    n = frames.receive(sock.fileno(), now_ns)  # or both in one compiled call (read(2))
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from hilrig.drivers.robot_state.wire import (
     STATE_DTYPE,
     DecoderStats,
 )
+from hilrig.drivers.sys_read import read_into
 
 RECV_BYTES = 65536  # what one feed takes at most: 385 frames, far more than arrive in a tick
 # the counters array: DecoderStats's fields in order, then the decoder's own state
@@ -61,6 +63,7 @@ class StateFrames(CompiledDecoder):
     def __init__(self) -> None:
         super().__init__(
             decode,
+            receive,
             (_MAGIC, _LIMITS, np.zeros(1, dtype=np.uint64)),
             dtype=STATE_DTYPE,
             counters=LAST_SEQUENCE + 1,
@@ -121,6 +124,26 @@ def decode(
             counters[_DROPPED] += 1
             start += 1
     return finish(buffer, rows, newest, counters, start, end, n)
+
+
+@njit(cache=True)
+def receive(
+    buffer: NDArray[np.uint8],
+    rows: NDArray[np.void],
+    newest: NDArray[np.void],
+    counters: NDArray[np.int64],
+    magic: NDArray[np.uint8],
+    limits: NDArray[np.float64],
+    bits: NDArray[np.uint64],
+    io: NDArray[np.int64],
+    fd: int,
+    t_ns: int,
+) -> int:
+    """read(2) from ``fd`` into the buffer after the held bytes, then :func:`decode` them."""
+    count = read_into(fd, buffer, counters[counters.shape[0] - 1], RECV_BYTES, io)
+    if count <= 0:
+        return 0
+    return decode(buffer, rows, newest, counters, magic, limits, bits, count, t_ns)
 
 
 @njit(cache=True, inline="always")

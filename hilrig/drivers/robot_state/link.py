@@ -1,9 +1,10 @@
 """Robot joint state over TCP, polled from the caller's loop; reconnects on loss.
 
 Follows the driver shape of ``hilrig.drivers.base``: the loop selects on ``fileno()`` and calls
-``poll(now_ns)``, which takes what is waiting on the non-blocking socket (one ``recv_into``
-straight into the decoder's buffer, TCP_NODELAY; up to 385 frames a poll, the rest at the next)
-and returns the frames decoded, rows of :data:`~hilrig.drivers.robot_state.wire.STATE_DTYPE`
+``poll(now_ns)``, which takes what is waiting on the non-blocking socket straight into the
+decoder's buffer (TCP_NODELAY; up to 385 frames a poll, the rest at the next; the compiled
+decoder reads and decodes in one call, read(2) included, any other takes a ``recv_into``) and
+returns the frames decoded, rows of :data:`~hilrig.drivers.robot_state.wire.STATE_DTYPE`
 stamped ``now_ns`` in the decoder's own array (valid until the next poll: copy what you keep).
 ``latest()`` is the newest row and ``status().age_ns`` tells how old it is, which the loop
 compares with its limit to hold the robot on a lost link. The decoder is pluggable
@@ -25,9 +26,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hilrig.drivers.base import LinkStatus, RateMeter, Reader, error_text, wait_readable
+from hilrig.drivers.compiled_decoder import CompiledDecoder
 from hilrig.drivers.reconnect import Backoff, start_tcp_connect, tcp_connected
 from hilrig.drivers.robot_state.frames import StateFrames
 from hilrig.drivers.robot_state.wire import STATE_DTYPE, DecoderStats
+from hilrig.drivers.sys_read import BYTES_READ, read_error
 from hilrig.errors import LinkError
 
 StateRows = NDArray[np.void]
@@ -70,7 +73,8 @@ class RobotStateClient(Reader[np.void]):
         backoff_s: tuple[float, float] = (0.01, 1.0),
     ) -> None:
         self.endpoint = (host, port)
-        self._decoder = decoder_factory()
+        self._decoder = decoder = decoder_factory()
+        self._compiled = decoder if isinstance(decoder, CompiledDecoder) else None
         self._connect_timeout_ns = round(connect_timeout_s * 1e9)
         self._stall_after_ns = round(stall_after_s * 1e9)
         self._backoff = Backoff(backoff_s)
@@ -90,8 +94,14 @@ class RobotStateClient(Reader[np.void]):
         self.reconnects = 0
         self.stalls = 0
         self.errors = 0
-        self.bytes_received = 0
+        self._bytes_fed = 0  # received for a decoder that is not compiled
         self.last_error = ""
+
+    @property
+    def bytes_received(self) -> int:
+        """Bytes received since construction."""
+        compiled = self._compiled
+        return self._bytes_fed + (0 if compiled is None else int(compiled.io[BYTES_READ]))
 
     def decoder_stats(self) -> DecoderStats:
         """The decoder's counters (frames, CRC errors, gaps, bytes dropped...)."""
@@ -187,16 +197,7 @@ class RobotStateClient(Reader[np.void]):
             self._connect_started_ns = now_ns
         if self._fd < 0 and not self._connected(now_ns):
             return self._none
-        assert self._sock is not None
-        decoder = self._decoder
-        try:
-            count = self._sock.recv_into(decoder.free)
-        except BlockingIOError:
-            return self._none
-        if count == 0:
-            raise LinkError(f"robot state {self._where()}: closed by the robot")
-        self.bytes_received += count
-        n = decoder.feed(count, now_ns)
+        n = self._receive(now_ns)
         if not n:
             return self._none
         if self._latest_t_ns >= 0 and now_ns - self._latest_t_ns > self._stall_after_ns:
@@ -204,7 +205,31 @@ class RobotStateClient(Reader[np.void]):
         self._latest_t_ns = now_ns
         self._frames += n
         self._rate.update(now_ns, self._frames)
-        return decoder.rows[:n]
+        return self._decoder.rows[:n]
+
+    def _receive(self, now_ns: int) -> int:
+        """Read what waits and decode it (one compiled call for a compiled decoder); the frames
+        completed. Raises on a lost link."""
+        compiled = self._compiled
+        if compiled is not None:
+            n = compiled.receive(self._fd, now_ns)
+            if n:
+                return n
+            count = compiled.last_read
+            if (error := read_error(count)) is not None:
+                raise error
+        else:
+            assert self._sock is not None
+            try:
+                count = self._sock.recv_into(self._decoder.free)
+            except BlockingIOError:
+                return 0
+            self._bytes_fed += count
+            if count:
+                return self._decoder.feed(count, now_ns)
+        if count == 0:
+            raise LinkError(f"robot state {self._where()}: closed by the robot")
+        return 0
 
     def _connected(self, now_ns: int) -> bool:
         """Whether the connect under way completed; raises if it failed or took too long."""
