@@ -5,7 +5,7 @@ joint-target writer, all polled (no driver thread), and the recorder's feed. ``w
 ``select`` until one of them has data or a deadline passes; ``pump`` reads each without blocking
 and puts every sample into its ring at once, from the first sample on (also while the session
 tares and waits for the recorder, before the first tick). The drivers return their samples as
-rows of the rings' own dtypes, so a sample costs one row copy into the shared ring.
+rows of the rings' own dtypes, which one compiled call a link stores in its shared ring.
 """
 
 from __future__ import annotations
@@ -60,20 +60,10 @@ class DeviceIO:
         feed = self.feed
         states = self.robot.poll(now_ns)  # rows of the ring's own dtype
         if feed is not None:
-            ring = feed.joint
-            for state in states:
-                slot = ring.reserve_index()
-                if slot >= 0:
-                    ring.rows[slot] = state
-                    ring.commit()
+            feed.joint.put(states)  # one compiled call, drops counted
         self.targets.poll(now_ns)
         samples = self.sensor.poll(now_ns)
         self.samples_read += len(states) + len(samples)
         if feed is not None:
-            ring = feed.ft
-            for sample in samples:  # rows of the ring's own dtype too
-                slot = ring.reserve_index()
-                if slot >= 0:
-                    ring.rows[slot] = sample
-                    ring.commit()
+            feed.ft.put(samples)  # rows of the ring's own dtype too
         return samples

@@ -166,7 +166,7 @@ class ControlLoop:
         inputs.orientation_d[:] = trajectory.orientation
         self._desired = desired_writer(trajectory, inputs.position_d)  # compiled: one call a tick
         self._q_cmd = self._kernel.q_cmd
-        self._write_row: Callable[..., None] | None = None  # bound to the ring while running
+        self._put_row: Callable[..., bool] | None = None  # bound to the ring while running
         self._send_ns = 0
         self._command_errors = targets.errors
         self._command_hold_until_ns = 0
@@ -190,12 +190,16 @@ class ControlLoop:
         """Tick until ``duration_s`` has passed, ``stop`` is set or the watchdog (asked every
         WATCHDOG_TICKS ticks) names a reason to end; returns the summary. The robot is left
         holding."""
-        if self._feed is not None:  # bound to the ring's rows while running, released after
-            self._write_row = self._kernel.row_writer(self._feed.tick.rows)
+        feed = self._feed
+        if feed is not None:  # bound to the ring's rows while running, released after
+            rings = (feed.ft, feed.joint, feed.tick)
+            self._put_row = self._kernel.row_writer(
+                feed.tick.rows, feed.tick.header, tuple(ring.header for ring in rings)
+            )
         try:
             self._ticks(duration_s, stop)
         finally:
-            self._write_row = None
+            self._put_row = None
         self._targets.write(self._q_cmd, Mode.HOLD)
         self._update_status(self._last_start_ns, self._last_nominal_ns)
         return self.summary
@@ -342,22 +346,17 @@ class ControlLoop:
         summary = self.summary
         summary.ticks += 1
         feed = self._feed
-        if feed is not None and self._write_row is not None:
-            ring = feed.tick
-            slot = ring.reserve_index()
-            if slot >= 0:
-                last = self._last_start_ns
-                self._write_row(
-                    slot,
-                    start_ns,
-                    summary.ticks,
-                    start_ns - last if last else 0,
-                    time.monotonic_ns() - start_ns,
-                    start_ns - nominal_ns,
-                    summary.missed_deadlines,
-                    feed.drops,
-                )
-                ring.commit()
+        if feed is not None and self._put_row is not None:  # reserved, filled, published
+            last = self._last_start_ns
+            self._put_row(
+                start_ns,
+                summary.ticks,
+                start_ns - last if last else 0,
+                time.monotonic_ns() - start_ns,
+                start_ns - nominal_ns,
+                summary.missed_deadlines,
+                feed.event_drops,
+            )
         self._last_start_ns = start_ns
         self._last_nominal_ns = nominal_ns
         if summary.ticks % STATUS_EVERY == 0:

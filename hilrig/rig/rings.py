@@ -7,10 +7,12 @@ free slot (or None when the ring is full, which counts a drop), the loop fills i
 :meth:`Ring.read_available`. Neither side ever waits for the other.
 
 Layout of the shared block: a 192-byte header of int64 words - a magic number, the row size and
-capacity (checked on attach), then on its own 64-byte cache line the write index and the drop
-count (written by the producer only), then on another line the read index (written by the
-consumer only) - followed by ``capacity`` rows. Indices count rows since creation and never
-wrap; row ``i`` lives in slot ``i % capacity``.
+capacity (checked on attach), then on its own 64-byte cache line the write index, the drop
+count and the producer's last look at the read index (the producer's only), then on another line
+the read index (the consumer's only) - followed by ``capacity`` rows. Indices count rows since
+creation and never wrap; row ``i`` lives in slot ``i % capacity``. The producer keeps nothing
+of its side outside the header, so its compiled twin (:mod:`hilrig.ring_kernels`: a batch
+of rows stored by one call, :meth:`Ring.put`) may serve the same ring.
 
 The creator is the producer: it touches every page of the block when creating it, so that
 writing a row never faults. Lifetime: the creator (:meth:`Ring.create`) unlinks the block
@@ -32,6 +34,7 @@ import numpy as np
 import numpy.typing as npt
 
 from hilrig.errors import RecordingError
+from hilrig.ring_kernels import DROPPED_AT, READ_AT, READ_SEEN_AT, WRITE_AT, put_rows
 
 Rows = npt.NDArray[np.void]
 """Structured rows of a ring's dtype; a 0-d array of it is one writable row (a slot)."""
@@ -39,8 +42,6 @@ Rows = npt.NDArray[np.void]
 _MAGIC = int.from_bytes(b"HILRING1", "little")
 _WORDS = 24  # header size in int64 words (192 bytes: three 64-byte cache lines)
 _MAGIC_AT, _ITEMSIZE_AT, _CAPACITY_AT = 0, 1, 2
-_WRITE_AT, _DROPPED_AT = 8, 9  # the producer's cache line
-_READ_AT = 16  # the consumer's cache line
 _HEADER_BYTES = _WORDS * 8
 
 
@@ -86,6 +87,8 @@ class Ring:
         assert buf is not None  # None only after close
         # memoryview items are Python ints; an aligned 8-byte store is one instruction.
         self._words = buf[:_HEADER_BYTES].cast("q")
+        self.header: npt.NDArray[np.int64] = np.frombuffer(buf, dtype=np.int64, count=_WORDS)
+        """The header's words, for compiled code (:mod:`hilrig.ring_kernels`)."""
         # frombuffer keeps a memoryview of the block as the base of every view of the rows, so
         # the block cannot be unmapped under a live view (see close).
         self._data: Rows = np.frombuffer(
@@ -93,10 +96,7 @@ class Ring:
         )
         # One 0-d view per slot, made once: reserve() hands them out without allocating.
         self._slots = tuple(self._data[i, ...] for i in range(spec.capacity))
-        self._write = self._words[_WRITE_AT]  # producer's copy of its own index
-        self._dropped = self._words[_DROPPED_AT]
-        self._read = self._words[_READ_AT]  # consumer's copy of its own index
-        self._read_seen = self._read  # producer's last look at the consumer's index
+        self._read = self._words[READ_AT]  # consumer's copy of its own index
         self._reserved = False
         self._closed = False
 
@@ -151,12 +151,12 @@ class Ring:
     def reserve_index(self) -> int:
         """Like :meth:`reserve`, but the slot's index into :attr:`rows` (-1 when full, counted),
         for compiled code that fills the row in place."""
-        write = self._write
-        if write - self._read_seen >= self._capacity:
-            self._read_seen = self._words[_READ_AT]
-            if write - self._read_seen >= self._capacity:
-                self._dropped += 1
-                self._words[_DROPPED_AT] = self._dropped
+        words = self._words
+        write = words[WRITE_AT]
+        if write - words[READ_SEEN_AT] >= self._capacity:
+            words[READ_SEEN_AT] = words[READ_AT]
+            if write - words[READ_SEEN_AT] >= self._capacity:
+                words[DROPPED_AT] += 1
                 self._reserved = False
                 return -1
         self._reserved = True
@@ -171,12 +171,18 @@ class Ring:
         """Publish the reserved row; without a reservation (reserve returned None) do nothing."""
         if self._reserved:
             self._reserved = False
-            self._write += 1
             # Publication order: the row's bytes were stored before this index store. x86-64
             # keeps stores in program order (TSO), and CPython performs the row stores and this
             # one in separate C calls the compiler cannot reorder, so a consumer that sees the
             # new index sees the row. Weakly ordered CPUs (ARM) would need a release fence here.
-            self._words[_WRITE_AT] = self._write
+            self._words[WRITE_AT] += 1
+
+    def put(self, rows: Rows) -> int:
+        """Store and publish ``rows`` (of the ring's dtype) in one compiled call, each as
+        :meth:`reserve_index` and :meth:`commit` would; returns how many the ring took (the
+        others are drops, counted)."""
+        stored: int = put_rows(self._data, self.header, rows)
+        return stored
 
     def push(self, *values: Any) -> bool:
         """Reserve, fill with ``values`` (one per field, in dtype order) and commit. Returns
@@ -193,7 +199,7 @@ class Ring:
 
     def read_available(self) -> Rows:
         """Copy out every committed row not read yet, oldest first, and release their slots."""
-        write = self._words[_WRITE_AT]  # load the index before the rows it publishes
+        write = self._words[WRITE_AT]  # load the index before the rows it publishes
         start = self._read % self._capacity
         count = write - self._read
         end = start + count
@@ -204,7 +210,7 @@ class Ring:
         # The slots are handed back only after the copy: x86-64 never moves a store before
         # earlier loads, so the producer cannot overwrite a row still being copied.
         self._read = write
-        self._words[_READ_AT] = write
+        self._words[READ_AT] = write
         return rows
 
     # -- both ---------------------------------------------------------------------------------
@@ -217,17 +223,17 @@ class Ring:
     @property
     def pushed(self) -> int:
         """Rows committed since creation (the write index)."""
-        return int(self._words[_WRITE_AT])
+        return int(self._words[WRITE_AT])
 
     @property
     def dropped(self) -> int:
         """Rows refused because the ring was full, since creation."""
-        return int(self._words[_DROPPED_AT])
+        return int(self._words[DROPPED_AT])
 
     @property
     def backlog(self) -> int:
         """Rows committed but not yet read by the consumer."""
-        return int(self._words[_WRITE_AT] - self._words[_READ_AT])
+        return int(self._words[WRITE_AT] - self._words[READ_AT])
 
     def close(self) -> None:
         """Unmap the block in this process; call again once the views are gone if it raised.
@@ -238,7 +244,7 @@ class Ring:
         if not self._closed:
             self._closed = True
             self._slots = ()
-            del self._data
+            del self._data, self.header
             self._words.release()
         try:
             self._shm.close()

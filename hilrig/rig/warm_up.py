@@ -11,7 +11,8 @@ from hilrig.drivers.joint_targets.frame import RequestFrame
 from hilrig.drivers.joint_targets.wire import Mode, RegisterMap
 from hilrig.drivers.robot_state.frames import StateFrames
 from hilrig.emulator.rig import HOME_Q_RAD
-from hilrig.rig.records import AXES, TICK_DTYPE
+from hilrig.rig.recorder_feed import release_rings
+from hilrig.rig.records import AXES, FT_DTYPE, JOINT_DTYPE, TICK_DTYPE
 from hilrig.rig.rings import Ring, RingSpec
 from hilrig.robot import RobotModel
 from hilrig.tick.kernel import COMMAND_OK, ROBOT_OK, SENSOR_OK, CompiledTick
@@ -20,14 +21,17 @@ from hilrig.tick.trajectory import make_trajectory
 from hilrig.tick.trajectory_kernel import desired_writer
 from hilrig.timing import LatencyHistogram
 
+RING_DTYPES = (FT_DTYPE, JOINT_DTYPE, TICK_DTYPE)  # the recorder feed's rings, in its order
+
 
 def warm_up() -> None:
     """Load (or compile) every kernel the session's thread runs once its devices talk (the
     tick's, the task trajectory's samplers, the drivers' decoders, the Modbus request's, the
-    loop's latency histograms) and run them once on a throwaway state built like a session's
-    (rows in a shared-memory ring: numba compiles per array type), so that no first-call cost
-    lands between the devices' first bytes and the session's first ticks (a fresh clone compiles
-    them all here; ``tests/rig/test_warm_up.py`` checks that nothing is left)."""
+    rings' row stores, the loop's latency histograms) and run them once on a throwaway state
+    built like a session's (rows in shared-memory rings: numba compiles per array type), so
+    that no first-call cost lands between the devices' first bytes and the session's first
+    ticks (a fresh clone compiles them all here; ``tests/rig/test_warm_up.py`` checks that
+    nothing is left)."""
     model = RobotModel()
     q0 = np.asarray(HOME_Q_RAD, dtype=np.float64)
     controller = make("adaptive", combine((preset("adaptive"), 3), (preset("adaptive-joint"), 6)))
@@ -45,11 +49,13 @@ def warm_up() -> None:
     FtFrames()  # the drivers' decoders compile as they are made
     StateFrames()
     LatencyHistogram().add(0)
-    ring = Ring.create(RingSpec.unique("warm", TICK_DTYPE, 2))
+    rings = [Ring.create(RingSpec.unique("warm", dtype, 2)) for dtype in RING_DTYPES]
     try:
-        write_row = tick.row_writer(ring.rows)
-        write_row(0, 0, 0, 0, 0, 0, 0, 0)
-        del write_row  # it holds the ring's rows, which must be released before unmapping
+        for ring in rings[:2]:  # the drivers' rows into their rings
+            ring.put(np.zeros(1, dtype=ring.spec.dtype))
+        tick_ring = rings[2]
+        put_row = tick.row_writer(tick_ring.rows, tick_ring.header, (tick_ring.header,) * 3)
+        put_row(0, 0, 0, 0, 0, 0, 0)
+        del put_row  # it holds the ring's rows, which must be released before unmapping
     finally:
-        ring.unlink()
-        ring.close()
+        release_rings(rings)

@@ -48,7 +48,7 @@ from hilrig.tick.row import (
     W_TARGET,
     W_WRENCH,
     WORK_SIZE,
-    fill_tick_row,
+    put_tick_row,
 )
 from hilrig.tick.safety import SafetyClamp
 from hilrig.timing import bound_kernel
@@ -347,21 +347,29 @@ class CompiledTick:
         i.rotation_d[:] = rotation_d
         return self.step(flags_in)
 
-    def row_writer(self, rows: NDArray[np.void]) -> Callable[..., None]:
-        """Writes this tick's row into ``rows[slot]`` when called with ``slot`` and the row's
-        seven timing ints (bound :func:`fill_tick_row`)."""
+    def row_writer(
+        self,
+        rows: NDArray[np.void],
+        header: NDArray[np.int64],
+        drops_from: tuple[NDArray[np.int64], ...],
+    ) -> Callable[..., bool]:
+        """Puts this tick's row into the ring of ``rows`` and ``header`` when called with the
+        row's six timing ints and the drops counted elsewhere (bound :func:`put_tick_row`;
+        ``drops_from``: the headers whose drops the row's ``queue_drops`` adds up)."""
         k, i = self.arrays, self.inputs
         return bound_kernel(
-            fill_tick_row,
+            put_tick_row,
             rows,
+            header,
+            drops_from,
             self.work,
             k.out,
             k.contact,
             k.mass,
             i.position_d,
             i.orientation_d,
-            last=(0,) * 8,
+            last=(0,) * 7,
         )
 
 
-__all__ = ["CompiledTick", "TickInputs", "fill_tick_row", "tick_kernel"]
+__all__ = ["CompiledTick", "TickInputs", "put_tick_row", "tick_kernel"]

@@ -1,7 +1,8 @@
 """The tick's row: the compiled tick's results written into the recorder ring's slot in place.
 
 The row's layout is ``TICK_DTYPE`` (``hilrig/rig/records.py``, from the recording schema); the
-loop calls this through :meth:`hilrig.tick.kernel.CompiledTick.row_writer` (bound: no dispatch).
+loop calls :func:`put_tick_row` through :meth:`hilrig.tick.kernel.CompiledTick.row_writer`
+(bound: no dispatch), which reserves the ring's slot, fills it and publishes it in one call.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from numpy.typing import NDArray
 
 from hilrig.compiled import njit
 from hilrig.recording.schema import AXES
+from hilrig.ring_kernels import DROPPED_AT, publish, reserve_slot
 from hilrig.robot import JOINTS
 
 # The compiled tick's ``work`` vector (float64): offsets of its parts.
@@ -22,6 +24,55 @@ WORK_SIZE = 48
 
 
 @njit(cache=True)
+def put_tick_row(
+    rows: NDArray[np.void],
+    header: NDArray[np.int64],
+    drops_from: tuple[NDArray[np.int64], ...],
+    work: NDArray[np.float64],
+    results: NDArray[np.float64],
+    contact: NDArray[np.int8],
+    mass: NDArray[np.float64],
+    position_d: NDArray[np.float64],
+    orientation_d: NDArray[np.float64],
+    t_ns: int,
+    tick: int,
+    period_ns: int,
+    compute_ns: int,
+    lateness_ns: int,
+    overruns: int,
+    other_drops: int,
+) -> bool:
+    """The tick's row into the next free slot of the ring (``rows``, ``header``), published;
+    False if the ring was full (a drop, counted). Its ``queue_drops`` are the drops counted in
+    the headers ``drops_from`` (this ring's among them) plus ``other_drops``."""
+    slot = reserve_slot(header, rows.shape[0])
+    if slot < 0:
+        return False
+    queue_drops = other_drops
+    for words in drops_from:
+        queue_drops += words[DROPPED_AT]
+    fill_tick_row(
+        rows,
+        work,
+        results,
+        contact,
+        mass,
+        position_d,
+        orientation_d,
+        slot,
+        t_ns,
+        tick,
+        period_ns,
+        compute_ns,
+        lateness_ns,
+        overruns,
+        queue_drops,
+    )
+    publish(header, 1)
+    return True
+
+
+@njit(cache=True, inline="always")
 def fill_tick_row(
     rows: NDArray[np.void],
     work: NDArray[np.float64],

@@ -195,6 +195,7 @@ OPS = st.lists(
         st.tuples(st.just("fill"), st.integers(1, 10)),
         st.tuples(st.just("abandon"), st.just(1)),
         st.tuples(st.just("read"), st.just(0)),
+        st.tuples(st.just("put"), st.integers(0, 10)),
     ),
     max_size=25,
 )
@@ -219,6 +220,17 @@ def test_consumer_sees_exactly_the_committed_rows_in_order(
                 assert rows["value"].tolist() == [list(value_of(i)) for i in pending]
                 seen += pending
                 pending = []
+                continue
+            if op == "put":  # a batch by one compiled call, on the same ring
+                first = len(committed) + drops
+                batch = np.zeros(n, dtype=ROW)
+                batch["id"] = np.arange(first, first + n)
+                batch["value"] = np.reshape([value_of(i) for i in range(first, first + n)], (n, 3))
+                room = min(n, capacity - len(pending))
+                assert ring.put(batch) == room
+                pending += list(range(first, first + room))
+                committed += list(range(first, first + room))
+                drops += n - room
                 continue
             for _ in range(n):
                 i = len(committed) + drops

@@ -53,9 +53,12 @@ def test_no_kernel_is_loaded_once_the_devices_talk(tmp_path: Path) -> None:
     )
     assert done.returncode == 0, done.stderr[-2000:]
     loaded = json.loads(done.stdout.splitlines()[-1])
-    kernels = {  # the tick's, the trajectory's, the drivers', the latency histograms'
+    kernels = {  # the tick's, the trajectory's, the drivers', the rings', the histograms'
         "hilrig.tick.kernel.tick_kernel",
-        "hilrig.tick.row.fill_tick_row",
+        "hilrig.tick.row.put_tick_row",
+        "hilrig.ring_kernels.put_rows",
+        "hilrig.drivers.ft.frames.receive",
+        "hilrig.drivers.robot_state.frames.receive",
         "hilrig.tick.trajectory_kernel.circle_into",
         "hilrig.tick.trajectory_kernel.waypoints_into",
         "hilrig.drivers.ft.frames.frame",

@@ -22,6 +22,7 @@ from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.recording import load
 from hilrig.rig.loop import LoopConfig
 from hilrig.rig.records import TICK_DTYPE
+from hilrig.ring_kernels import DROPPED_AT, READ_AT, READ_SEEN_AT, WRITE_AT
 from hilrig.robot import RobotModel
 from hilrig.tick.clamp_kernels import HOLDING
 from hilrig.tick.kernel import (
@@ -227,14 +228,19 @@ def test_the_tick_row_holds_what_the_tick_computed() -> None:
     compiled.run(SENSOR_OK | ROBOT_OK | COMMAND_OK, wrench, q0, np.ones(6), np.zeros(9),
                  pose[:3, 3].copy(), pose[:3, :3])  # fmt: skip
     rows = np.zeros(3, dtype=TICK_DTYPE)
+    header, other = np.zeros(24, dtype=np.int64), np.zeros(24, dtype=np.int64)
+    header[WRITE_AT] = header[READ_AT] = header[READ_SEEN_AT] = 4  # empty, next slot 1
+    header[DROPPED_AT], other[DROPPED_AT] = 20, 300
     k = compiled.arrays
     quaternion = np.array([0.0, 0.0, 0.0, 1.0])
     compiled.inputs.orientation_d[:] = quaternion
-    compiled.row_writer(rows)(1, 1, 2, 3, 4, 5, 6, 7)  # as the loop writes it: bound to the rows
+    put = compiled.row_writer(rows, header, (header, other))  # as the loop binds it
+    assert put(1, 2, 3, 4, 5, 6, 7000) is True
+    assert header[WRITE_AT] == 5  # published
     row = rows[1]
     assert rows[0]["t_ns"] == 0 and rows[2]["t_ns"] == 0
     assert [int(row[f]) for f in ("t_ns", "tick", "period_ns", "compute_ns")] == [1, 2, 3, 4]
-    assert [int(row[f]) for f in ("lateness_ns", "overruns", "queue_drops")] == [5, 6, 7]
+    assert [int(row[f]) for f in ("lateness_ns", "overruns", "queue_drops")] == [5, 6, 7320]
     np.testing.assert_array_equal(row["force"], compiled.force)
     np.testing.assert_array_equal(row["offset"], k.offset)
     np.testing.assert_array_equal(row["commanded_q"], compiled.q_cmd)
@@ -245,6 +251,9 @@ def test_the_tick_row_holds_what_the_tick_computed() -> None:
     np.testing.assert_allclose(row["moment"], r @ wrench[3:], atol=1e-12)
     np.testing.assert_array_equal(row["desired_position"], pose[:3, 3])
     np.testing.assert_array_equal(row["desired_orientation"], quaternion)
+    header[READ_AT] = header[READ_SEEN_AT] = 2  # the consumer three rows behind: the ring full
+    assert put(9, 9, 9, 9, 9, 9, 9) is False
+    assert (header[WRITE_AT], header[DROPPED_AT]) == (5, 21) and rows[2]["t_ns"] == 0
 
 
 @pytest.mark.parametrize("missing", [SENSOR_OK, ROBOT_OK, COMMAND_OK])
