@@ -65,6 +65,7 @@ from hilrig.tick.kernel import (
     SENSOR_OK,
     STOP_NOW,
     CompiledTick,
+    TickInputs,
 )
 from hilrig.tick.safety import SafetyClamp
 from hilrig.tick.trajectory import Trajectory
@@ -151,11 +152,15 @@ class ControlLoop:
         if latest is None:
             raise HilrigError("the control loop needs a robot state: connect the robot first")
         q0 = np.array(latest["q"], dtype=np.float64)
-        # the newest samples' fields, views their drivers keep current
-        self._robot_q, self._robot_tau = self._robot.newest["q"][0], self._robot.newest["tau"][0]
-        self._wrench = self._sensor.newest["wrench"][0]
+        # the kernel reads the newest samples in place: views their drivers keep current
+        newest_state, newest_sample = self._robot.newest, self._sensor.newest
+        measured = TickInputs(
+            raw_wrench=newest_sample["wrench"][0],
+            q_measured=newest_state["q"][0],
+            torque_measured=newest_state["tau"][0],
+        )
         self._kernel = CompiledTick.build(
-            self._controller, model, safety, compensator, q0, 1.0 / config.rate_hz
+            self._controller, model, safety, compensator, q0, 1.0 / config.rate_hz, measured
         )
         self.status = LoopStatus()
         self.summary = LoopSummary()
@@ -264,7 +269,6 @@ class ControlLoop:
         summary = self.summary
         events = self._events
         kernel = self._kernel
-        inputs = self._inputs
         sample_t_ns = self._sensor.latest_t_ns
         robot_t_ns = self._robot.latest_t_ns
         sensor_ok = sample_t_ns >= 0 and start_ns - sample_t_ns <= self._stale_ns
@@ -279,12 +283,7 @@ class ControlLoop:
         flags = (SENSOR_OK if sensor_ok else 0) | (ROBOT_OK if robot_ok else 0)
         if start_ns >= self._command_hold_until_ns:
             flags |= COMMAND_OK
-        # the kernel reads the measured inputs only when both are fresh (so present)
-        if sample_t_ns >= 0:
-            inputs.raw_wrench[:] = self._wrench
-        if robot_t_ns >= 0:
-            inputs.q_measured[:] = self._robot_q
-            inputs.torque_measured[:] = self._robot_tau
+        # (the kernel reads the drivers' newest samples only when both are fresh, so present)
         # the task is sampled at the tick's nominal time, not its jittery start, so the
         # commanded path is as smooth as the controller's fixed dt assumes
         t_s = (nominal_ns - self._t0_ns) / 1e9

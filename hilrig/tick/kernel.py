@@ -280,7 +280,10 @@ class CompiledTick:
         compensator: GravityCompensator,
         q0_rad: NDArray[np.float64],
         dt_s: float,
+        inputs: TickInputs | None = None,
     ) -> CompiledTick:
+        """The kernel's arrays for these parts; ``inputs`` (default: zeros) are the arrays the
+        kernel reads, which may be views a driver keeps current (the loop's)."""
         compensation = np.zeros((6, 5))
         compensation[:, 0] = compensator.bias_in_sensor
         compensation[:, 1:4] = compensator.load.wrench_map()
@@ -311,6 +314,7 @@ class CompiledTick:
             ik_work(),
             poses,
             counters,
+            TickInputs() if inputs is None else inputs,
         )
 
     @property
