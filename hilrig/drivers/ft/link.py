@@ -235,7 +235,7 @@ class FtSerial(Reader[np.void]):
             self._reconnects += 1
         framer = self._framer
         # read(2) and framing in one compiled call; a tty set for timeout 0 reads nothing when
-        # empty, a lost one fails (EIO)
+        # empty, as a hung-up one does (the start command re-sent after a silence then fails)
         n = framer.receive(self._fd, now_ns)
         if not n and (error := read_error(framer.last_read)) is not None:
             raise error
