@@ -24,16 +24,16 @@ import numpy as np
 import serial
 from numpy.typing import NDArray
 
-from hilrig.drivers.base import LinkStatus, RateMeter, Reader, error_text, wait_readable
+from hilrig.drivers.base import LinkStatus, Reader, wait_readable
 from hilrig.drivers.ft.frames import FtFrames
 from hilrig.drivers.ft.wire import (
-    SAMPLE_DTYPE,
     START_COMMAND,
     STOP_COMMAND,
     FramerConfig,
     FramerStats,
 )
 from hilrig.drivers.reconnect import Backoff
+from hilrig.drivers.stream_link import StreamLink
 from hilrig.drivers.sys_read import read_error
 from hilrig.errors import LinkError
 
@@ -43,7 +43,7 @@ SampleRows = NDArray[np.void]
 """Rows of SAMPLE_DTYPE: ``t_ns`` (the receive time), ``seq``, ``wrench`` (N, N*m)."""
 
 
-class FtSerial(Reader[np.void]):
+class FtSerial(StreamLink, Reader[np.void]):
     """A Kunwei sensor on serial port ``port`` (a device path, or a pty path in tests)."""
 
     def __init__(
@@ -59,27 +59,16 @@ class FtSerial(Reader[np.void]):
         self.port = port
         self._baudrate = baudrate
         self._framer = FtFrames(framer_config)
+        # newest: the newest sample, a row the framer keeps current in place (its fields are
+        # views: newest["wrench"][0] is always the newest wrench)
+        super().__init__(self._framer.newest, Backoff(backoff_s))
         self._stall_after_ns = round(stall_after_s * 1e9)
         self._restart_after_ns = round(restart_after_s * 1e9)
-        self._backoff = Backoff(backoff_s)
         self._serial: serial.Serial | None = None
         self._fd = -1
         self._wanted = False  # between connect() and close(): poll reopens a lost link
-        self._none: SampleRows = np.zeros(0, dtype=SAMPLE_DTYPE)
-        self._unreturned = self._none  # read by connect(), returned by the next poll
         self._heard_ns = 0  # the last sample, or the last start command sent
-        self.newest = self._framer.newest
-        """The newest sample, one row the framer keeps current in place (its fields are views:
-        ``newest["wrench"][0]`` is always the newest wrench); meaningful once
-        :attr:`latest_t_ns` >= 0."""
-        self._latest_t_ns = -1
-        self._samples = 0
-        self._rate = RateMeter()
         self._stalled = False
-        self._stalls = 0
-        self._reconnects = 0
-        self._errors = 0
-        self._last_error = ""
 
     def connect(self, *, first_sample_timeout_s: float | None = 1.0) -> None:
         """Open the port and send start; wait for the first frame unless the timeout is None.
@@ -135,43 +124,8 @@ class FtSerial(Reader[np.void]):
         """The port's descriptor, -1 while it is closed."""
         return self._fd
 
-    def poll(self, now_ns: int) -> SampleRows:
-        """The samples read now (stamped ``now_ns``), oldest first, as rows the next poll reuses;
-        never blocks, never raises."""
-        try:
-            samples = self._pump(now_ns)
-        except Exception as err:  # whatever happens (even a bug), the caller's loop carries on
-            self._errors += 1
-            self._last_error = error_text(err)
-            self._drop()
-            self._backoff.failed(now_ns)
-            samples = self._none
-        if len(self._unreturned):
-            samples, self._unreturned = np.concatenate((self._unreturned, samples)), self._none
-        return samples
-
-    def latest(self) -> np.void | None:
-        """The newest sample (a row of SAMPLE_DTYPE kept current in place: copy to keep it)."""
-        return None if self._latest_t_ns < 0 else self.newest[0]
-
-    @property
-    def latest_t_ns(self) -> int:
-        """The newest sample's receive time (monotonic ns); -1 before the first."""
-        return self._latest_t_ns
-
     def status(self) -> LinkStatus:
-        age_ns = None if self._latest_t_ns < 0 else time.monotonic_ns() - self._latest_t_ns
-        return LinkStatus(
-            endpoint=self.port,
-            connected=self.is_connected,
-            samples=self._samples,
-            rate_hz=self._rate.rate_hz(age_ns),
-            age_ns=age_ns,
-            stalls=self._stalls,
-            reconnects=self._reconnects,
-            errors=self._errors,
-            last_error=self._last_error,
-        )
+        return self._link_status(self.port, self.is_connected)
 
     def framer_stats(self) -> FramerStats:
         """The framer's counters (frames, rejected, resyncs, bytes dropped) since construction."""
@@ -232,7 +186,7 @@ class FtSerial(Reader[np.void]):
                 return self._none
             self._open(now_ns)
             self._backoff.succeeded()
-            self._reconnects += 1
+            self.reconnects += 1
         framer = self._framer
         # read(2) and framing in one compiled call; a tty set for timeout 0 reads nothing when
         # empty, as a hung-up one does (the start command re-sent after a silence then fails)
@@ -242,13 +196,11 @@ class FtSerial(Reader[np.void]):
         latest_ns = self._latest_t_ns
         if latest_ns >= 0 and not self._stalled and now_ns - latest_ns > self._stall_after_ns:
             self._stalled = True
-            self._stalls += 1
+            self.stalls += 1
         if n:
-            self._latest_t_ns = now_ns
-            self._samples += n
+            self._received(now_ns, n)
             self._stalled = False
             self._heard_ns = now_ns
-            self._rate.update(now_ns, self._samples)
         elif now_ns - self._heard_ns > self._restart_after_ns:
             with contextlib.suppress(BlockingIOError):  # a full output buffer: next time
                 os.write(self._fd, START_COMMAND)

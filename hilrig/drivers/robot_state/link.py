@@ -25,11 +25,12 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from hilrig.drivers.base import LinkStatus, RateMeter, Reader, error_text, wait_readable
+from hilrig.drivers.base import LinkStatus, Reader, wait_readable
 from hilrig.drivers.compiled_decoder import CompiledDecoder
 from hilrig.drivers.reconnect import Backoff, start_tcp_connect, tcp_connected
 from hilrig.drivers.robot_state.frames import StateFrames
-from hilrig.drivers.robot_state.wire import STATE_DTYPE, DecoderStats
+from hilrig.drivers.robot_state.wire import DecoderStats
+from hilrig.drivers.stream_link import StreamLink
 from hilrig.drivers.sys_read import BYTES_READ, read_error
 from hilrig.errors import LinkError
 
@@ -59,7 +60,7 @@ class StateDecoder(Protocol):
     def reset(self) -> None: ...
 
 
-class RobotStateClient(Reader[np.void]):
+class RobotStateClient(StreamLink, Reader[np.void]):
     """Reads the joint-state stream at ``host:port``; ``with client:`` connects and closes."""
 
     def __init__(
@@ -75,27 +76,17 @@ class RobotStateClient(Reader[np.void]):
         self.endpoint = (host, port)
         self._decoder = decoder = decoder_factory()
         self._compiled = decoder if isinstance(decoder, CompiledDecoder) else None
+        # newest: the newest frame, a row the decoder keeps current in place (its fields are
+        # views: newest["q"][0] is always the newest q)
+        super().__init__(decoder.newest, Backoff(backoff_s))
         self._connect_timeout_ns = round(connect_timeout_s * 1e9)
         self._stall_after_ns = round(stall_after_s * 1e9)
-        self._backoff = Backoff(backoff_s)
         self._sock: socket.socket | None = None  # connecting or connected
         self._fd = -1  # the socket's once connected
         self._connect_started_ns = 0
         self._wanted = False  # between connect() and close(): poll reopens a lost link
         self._linked_before = False
-        self._none: StateRows = np.zeros(0, dtype=STATE_DTYPE)
-        self._unreturned = self._none  # read by connect(), returned by the next poll
-        self.newest = self._decoder.newest
-        """The newest frame, one row the decoder keeps current in place (its fields are views:
-        ``newest["q"][0]`` is always the newest q); meaningful once :attr:`latest_t_ns` >= 0."""
-        self._latest_t_ns = -1
-        self._frames = 0
-        self._rate = RateMeter()
-        self.reconnects = 0
-        self.stalls = 0
-        self.errors = 0
         self._bytes_fed = 0  # received for a decoder that is not compiled
-        self.last_error = ""
 
     @property
     def bytes_received(self) -> int:
@@ -148,43 +139,8 @@ class RobotStateClient(Reader[np.void]):
         """The connected socket's descriptor; -1 while down or still connecting."""
         return self._fd
 
-    def poll(self, now_ns: int) -> StateRows:
-        """The frames received now (stamped ``now_ns``), oldest first, as rows the next poll
-        reuses; never blocks or raises."""
-        try:
-            received = self._pump(now_ns)
-        except Exception as err:  # whatever happens (even a bug), the caller's loop carries on
-            self.errors += 1
-            self.last_error = error_text(err)
-            self._drop()
-            self._backoff.failed(now_ns)
-            received = self._none
-        if len(self._unreturned):
-            received, self._unreturned = np.concatenate((self._unreturned, received)), self._none
-        return received
-
-    def latest(self) -> np.void | None:
-        """The newest frame (a row of STATE_DTYPE kept current in place: copy to keep it)."""
-        return None if self._latest_t_ns < 0 else self.newest[0]
-
-    @property
-    def latest_t_ns(self) -> int:
-        """The newest frame's receive time (monotonic ns); -1 before the first."""
-        return self._latest_t_ns
-
     def status(self) -> LinkStatus:
-        age_ns = None if self._latest_t_ns < 0 else time.monotonic_ns() - self._latest_t_ns
-        return LinkStatus(
-            endpoint=self._where(),
-            connected=self.is_connected,
-            samples=self._frames,
-            rate_hz=self._rate.rate_hz(age_ns),
-            age_ns=age_ns,
-            stalls=self.stalls,
-            reconnects=self.reconnects,
-            errors=self.errors,
-            last_error=self.last_error,
-        )
+        return self._link_status(self._where(), self.is_connected)
 
     # -- the link ----------------------------------------------------------------------------
 
@@ -202,9 +158,7 @@ class RobotStateClient(Reader[np.void]):
             return self._none
         if self._latest_t_ns >= 0 and now_ns - self._latest_t_ns > self._stall_after_ns:
             self.stalls += 1
-        self._latest_t_ns = now_ns
-        self._frames += n
-        self._rate.update(now_ns, self._frames)
+        self._received(now_ns, n)
         return self._decoder.rows[:n]
 
     def _receive(self, now_ns: int) -> int:
