@@ -42,59 +42,17 @@ def put_tick_row(
     overruns: int,
     other_drops: int,
 ) -> bool:
-    """The tick's row into the next free slot of the ring (``rows``, ``header``), published;
-    False if the ring was full (a drop, counted). Its ``queue_drops`` are the drops counted in
-    the headers ``drops_from`` (this ring's among them) plus ``other_drops``."""
+    """The tick's row (TICK_DTYPE) into the next free slot of the ring (``rows``, ``header``),
+    published; False if the ring was full (a drop, counted).
+
+    ``results`` is the controller's ``out`` (offset, rate, damping, stiffness rows of one tick);
+    the timing fields come as plain ints (a numpy store from Python costs microseconds). The
+    row's ``queue_drops`` are the drops counted in the headers ``drops_from`` (this ring's among
+    them) plus ``other_drops``.
+    """
     slot = reserve_slot(header, rows.shape[0])
     if slot < 0:
         return False
-    queue_drops = other_drops
-    for words in drops_from:
-        queue_drops += words[DROPPED_AT]
-    fill_tick_row(
-        rows,
-        work,
-        results,
-        contact,
-        mass,
-        position_d,
-        orientation_d,
-        slot,
-        t_ns,
-        tick,
-        period_ns,
-        compute_ns,
-        lateness_ns,
-        overruns,
-        queue_drops,
-    )
-    publish(header, 1)
-    return True
-
-
-@njit(cache=True, inline="always")
-def fill_tick_row(
-    rows: NDArray[np.void],
-    work: NDArray[np.float64],
-    results: NDArray[np.float64],
-    contact: NDArray[np.int8],
-    mass: NDArray[np.float64],
-    position_d: NDArray[np.float64],
-    orientation_d: NDArray[np.float64],
-    slot: int,
-    t_ns: int,
-    tick: int,
-    period_ns: int,
-    compute_ns: int,
-    lateness_ns: int,
-    overruns: int,
-    queue_drops: int,
-) -> None:
-    """Write the tick's row (TICK_DTYPE) into ``rows[slot]``.
-
-    ``results`` is the controller's ``out`` (offset, rate, damping, stiffness rows of one tick);
-    the timing fields come as plain ints (a numpy store from Python costs microseconds).
-    """
     row = rows[slot]
     row.t_ns = t_ns
     row.tick = tick
@@ -102,7 +60,9 @@ def fill_tick_row(
     row.compute_ns = compute_ns
     row.lateness_ns = lateness_ns
     row.overruns = overruns
-    row.queue_drops = queue_drops
+    row.queue_drops = other_drops
+    for words in drops_from:
+        row.queue_drops += words[DROPPED_AT]
     for i in range(AXES):
         f = work[W_FORCE + i]
         b = results[2, 0, i]
@@ -122,3 +82,5 @@ def fill_tick_row(
         row.desired_orientation[r] = orientation_d[r]
     for j in range(JOINTS):
         row.commanded_q[j] = work[W_Q_CMD + j]
+    publish(header, 1)
+    return True
