@@ -197,10 +197,7 @@ class ControlLoop:
         holding."""
         feed = self._feed
         if feed is not None:  # bound to the ring's rows while running, released after
-            rings = (feed.ft, feed.joint, feed.tick)
-            self._put_row = self._kernel.row_writer(
-                feed.tick.rows, feed.tick.header, tuple(ring.header for ring in rings)
-            )
+            self._put_row = self._kernel.row_writer(feed.tick.rows, feed.tick.header, feed.headers)
         try:
             self._ticks(duration_s, stop)
         finally:

@@ -14,6 +14,9 @@ from collections.abc import Sequence
 from multiprocessing.queues import Queue
 from types import TracebackType
 
+import numpy as np
+from numpy.typing import NDArray
+
 from hilrig.errors import RecordingError
 from hilrig.recording import EventRecord, SessionOutcome
 from hilrig.rig.child import CONTEXT
@@ -82,6 +85,16 @@ class RecorderFeed:
         return True
 
     @property
+    def rings(self) -> tuple[Ring, Ring, Ring]:
+        """The F/T, joint-state and tick rings, in that order."""
+        return self.ft, self.joint, self.tick
+
+    @property
+    def headers(self) -> tuple[NDArray[np.int64], ...]:
+        """The rings' header words (compiled code sums their drops into a tick's row)."""
+        return tuple(ring.header for ring in self.rings)
+
+    @property
     def drops(self) -> int:
         """Rows and events refused so far (every ring's drops plus the event queue's)."""
         return self.ft.dropped + self.joint.dropped + self.tick.dropped + self.event_drops
@@ -92,7 +105,7 @@ class RecorderFeed:
         (the rings' names are gone by then)."""
         self.events.close()
         self.events.cancel_join_thread()  # never wait at exit for a recorder that is gone
-        release_rings([self.ft, self.joint, self.tick])
+        release_rings(self.rings)
 
     def __enter__(self) -> RecorderFeed:
         return self

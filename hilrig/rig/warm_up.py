@@ -11,17 +11,14 @@ from hilrig.drivers.joint_targets.frame import RequestFrame
 from hilrig.drivers.joint_targets.wire import Mode, RegisterMap
 from hilrig.drivers.robot_state.frames import StateFrames
 from hilrig.emulator.rig import HOME_Q_RAD
-from hilrig.rig.recorder_feed import release_rings
-from hilrig.rig.records import AXES, FT_DTYPE, JOINT_DTYPE, TICK_DTYPE
-from hilrig.rig.rings import Ring, RingSpec
+from hilrig.rig.recorder_feed import RecorderFeed
+from hilrig.rig.records import AXES
 from hilrig.robot import RobotModel
 from hilrig.tick.kernel import COMMAND_OK, ROBOT_OK, SENSOR_OK, CompiledTick
 from hilrig.tick.safety import SafetyClamp, SafetyConfig
 from hilrig.tick.trajectory import make_trajectory
 from hilrig.tick.trajectory_kernel import desired_writer
 from hilrig.timing import LatencyHistogram
-
-RING_DTYPES = (FT_DTYPE, JOINT_DTYPE, TICK_DTYPE)  # the recorder feed's rings, in its order
 
 
 def warm_up() -> None:
@@ -49,13 +46,12 @@ def warm_up() -> None:
     FtFrames()  # the drivers' decoders compile as they are made
     StateFrames()
     LatencyHistogram().add(0)
-    rings = [Ring.create(RingSpec.unique("warm", dtype, 2)) for dtype in RING_DTYPES]
+    feed = RecorderFeed(rows=2, events=1)  # rings as the session's
     try:
-        for ring in rings[:2]:  # the drivers' rows into their rings
+        for ring in (feed.ft, feed.joint):  # the drivers' rows into their rings
             ring.put(np.zeros(1, dtype=ring.spec.dtype))
-        tick_ring = rings[2]
-        put_row = tick.row_writer(tick_ring.rows, tick_ring.header, (tick_ring.header,) * 3)
+        put_row = tick.row_writer(feed.tick.rows, feed.tick.header, feed.headers)
         put_row(0, 0, 0, 0, 0, 0, 0)
         del put_row  # it holds the ring's rows, which must be released before unmapping
     finally:
-        release_rings(rings)
+        feed.close()
