@@ -306,6 +306,11 @@ class LatencyHistogram:
             "max": self.max_ns / 1000,
         }
 
+    @property
+    def arrays(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """The bin counts and the totals :func:`add_duration` adds to (the arrays themselves)."""
+        return self._counts, self._totals
+
     def counts(self) -> NDArray[np.int64]:
         """The bin counts (a copy), bin i = [i, i+1) us."""
         return self._counts.copy()

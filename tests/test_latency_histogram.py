@@ -7,6 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from hilrig.rig.loop_figures import LoopSummary
 from hilrig.timing import LatencyHistogram
 
 MAX_US = 50
@@ -42,3 +43,26 @@ def test_an_empty_histogram_has_no_quantiles_and_a_copy_keeps_counting() -> None
     copy.add(2_500)
     assert (histogram.count, copy.count) == (1, 2)
     assert copy.summary_us() == {"mean": 2.0, "p50": 1.0, "p99": 2.0, "p99.9": 2.0, "max": 2.5}
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.tuples(*[st.integers(-5_000, 30_000_000)] * 4), min_size=1, max_size=100))
+def test_a_periods_four_durations_land_in_their_own_histograms(
+    periods: list[tuple[int, int, int, int]],
+) -> None:
+    summary = LoopSummary()
+    add = summary.period_adder()
+    for period in periods:
+        add(*period)
+    for column, histogram in enumerate(
+        (summary.io, summary.compute, summary.send, summary.lateness)
+    ):
+        values = [period[column] for period in periods]
+        alone = LatencyHistogram()  # the same durations, one add each
+        for value in values:
+            alone.add(value)
+        assert histogram.count == len(values)
+        assert histogram.total_ns == sum(values)
+        assert histogram.max_ns == max(0, *values)
+        np.testing.assert_array_equal(histogram.counts(), alone.counts())
+    assert summary.sensor_to_command.count == 0

@@ -15,9 +15,11 @@ Its kernel is ``kernel(buffer, rows, newest, counters, *constants, count, t_ns) 
 decodes the held bytes and the ``count`` new ones after them, writes the frames into
 ``rows[:n]`` and ends with :func:`finish` (the newest into ``newest``, the bytes it keeps moved
 to the buffer's start). :func:`find` and :func:`unsigned_le` are the kernels' other shared
-parts. Its receiver ``receiver(buffer, rows, newest, counters, *constants, io, fd, t_ns) -> n``
-reads what waits on a link's descriptor into the buffer (:func:`~.sys_read.read_into`) and calls
-the kernel on it: the drivers' loop reads and decodes a link with one call.
+parts. Its receiver ``receiver(table, fd, t_ns) -> n`` takes the same arrays and then ``io``
+by address (an :class:`~hilrig.array_table.ArrayTable` of the layout the decoder gives, so a
+call unboxes one array, not seven), reads what waits on a link's descriptor into the buffer
+(:func:`~.sys_read.read_into`) and calls the kernel on it: the drivers' loop reads and decodes a
+link with one call.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hilrig.array_table import ArrayTable, Layout
 from hilrig.compiled import njit
 from hilrig.drivers.sys_read import IO_WORDS, LAST_READ
 from hilrig.timing import bound_kernel
@@ -40,6 +43,7 @@ class CompiledDecoder:
         self,
         kernel: Any,
         receiver: Any,
+        receiver_layout: Layout,
         constants: tuple[Any, ...],
         *,
         dtype: np.dtype[Any],
@@ -62,8 +66,8 @@ class CompiledDecoder:
         self.io: NDArray[np.int64] = np.zeros(IO_WORDS, dtype=np.int64)
         arrays = (self._buffer, self.rows, self.newest, self.counters, *constants)
         self._feed: Callable[[int, int], int] = bound_kernel(kernel, *arrays, last=(0, 0))
-        self.receive: Callable[[int, int], int] = bound_kernel(
-            receiver, *arrays, self.io, last=(0, 0)
+        self.receive: Callable[[int, int], int] = ArrayTable((*arrays, self.io)).bind(
+            receiver, receiver_layout, last=(0, 0)
         )
         """``receive(fd, t_ns) -> n``: read(2) what waits on ``fd`` (non-blocking) into
         :attr:`free` and decode it, in one compiled call; the frames are ``rows[:n]`` stamped

@@ -29,8 +29,9 @@ from numpy.typing import NDArray
 
 from hilrig.compiled import njit
 from hilrig.robot.kinematics import fk_into
-from hilrig.tick.kernel import CompiledTick, tick_kernel
+from hilrig.tick.kernel import CompiledTick
 from hilrig.tick.row import W_Q_CMD
+from hilrig.tick.step_kernel import tick_kernel
 from hilrig.world.contact import HUNT_CROSSLEY_N, Mechanics
 from hilrig.world.response import advance
 

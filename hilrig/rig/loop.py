@@ -209,6 +209,7 @@ class ControlLoop:
     def _ticks(self, duration_s: float | None, stop: threading.Event) -> None:
         period = self._period_ns
         summary = self.summary
+        add_period = summary.period_adder()
         self._events.mark("loop", "session started at the start pose", time.monotonic_ns())
         # first: its one garbage collection must not delay tick 1
         with realtime_python(self.config.cpu):
@@ -253,10 +254,8 @@ class ControlLoop:
                         self._events.fault("session", f"{reason}: robot held, session ended", now)
                         break
                 done = time.monotonic_ns()
-                summary.io.add(ticking - now)
-                summary.compute.add(done - ticking - self._send_ns)
-                summary.send.add(self._send_ns)
-                summary.lateness.add(lateness)
+                send_ns = self._send_ns
+                add_period(ticking - now, done - ticking - send_ns, send_ns, lateness)
                 if done - nominal > period:
                     summary.missed_deadlines += 1
                 summary.missed_deadlines += frames - 1 if frames else 0

@@ -8,11 +8,10 @@ Cartesian axes x, y, z (base frame, N and m) then joints 1..6 (N*m and rad).
 
 from __future__ import annotations
 
-import numpy as np
-
 from hilrig.drivers.ft.wire import SAMPLE_DTYPE
 from hilrig.drivers.robot_state.wire import STATE_DTYPE
-from hilrig.recording.schema import AXES, AXIS_NAMES, JOINT_NAMES, TICK_FIELDS
+from hilrig.recording.schema import AXES, AXIS_NAMES, JOINT_NAMES
+from hilrig.tick.row import TICK_DTYPE
 
 __all__ = ["AXES", "AXIS_NAMES", "FT_DTYPE", "JOINTS", "JOINT_DTYPE", "JOINT_NAMES", "TICK_DTYPE"]
 
@@ -26,9 +25,3 @@ FT_DTYPE = SAMPLE_DTYPE
 # controller's clock and sequence, q rad, qd rad/s, tau N*m, status bits; the status is not
 # recorded)
 JOINT_DTYPE = STATE_DTYPE
-
-# One control tick: the fields of TICK_FIELDS (names, units, which ControllerState array each
-# fills), in that order.
-TICK_DTYPE = np.dtype(
-    [(f.name, f.kind, (f.size,)) if f.size else (f.name, f.kind) for f in TICK_FIELDS]
-)

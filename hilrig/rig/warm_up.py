@@ -11,6 +11,7 @@ from hilrig.drivers.joint_targets.frame import RequestFrame
 from hilrig.drivers.joint_targets.wire import Mode, RegisterMap
 from hilrig.drivers.robot_state.frames import StateFrames
 from hilrig.emulator.rig import HOME_Q_RAD
+from hilrig.rig.loop_figures import LoopSummary
 from hilrig.rig.recorder_feed import RecorderFeed
 from hilrig.rig.records import AXES
 from hilrig.robot import RobotModel
@@ -46,6 +47,7 @@ def warm_up() -> None:
     FtFrames()  # the drivers' decoders compile as they are made
     StateFrames()
     LatencyHistogram().add(0)
+    LoopSummary().period_adder()(0, 0, 0, 0)
     feed = RecorderFeed(rows=2, events=1)  # rings as the session's
     try:
         for ring in (feed.ft, feed.joint):  # the drivers' rows into their rings

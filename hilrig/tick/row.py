@@ -1,8 +1,9 @@
 """The tick's row: the compiled tick's results written into the recorder ring's slot in place.
 
-The row's layout is ``TICK_DTYPE`` (``hilrig/rig/records.py``, from the recording schema); the
+The row's layout is :data:`TICK_DTYPE` (the recording schema's ``TICK_FIELDS``, in order); the
 loop calls :func:`put_tick_row` through :meth:`hilrig.tick.kernel.CompiledTick.row_writer`
-(bound: no dispatch), which reserves the ring's slot, fills it and publishes it in one call.
+(:func:`row_entry`, its arrays by address), which reserves the ring's slot, fills it and
+publishes it in one call.
 """
 
 from __future__ import annotations
@@ -12,8 +13,9 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from hilrig.array_table import Layout, view1, view2, view3
 from hilrig.compiled import njit
-from hilrig.recording.schema import AXES
+from hilrig.recording.schema import AXES, TICK_FIELDS
 from hilrig.ring_kernels import DROPPED_AT, publish, reserve_slot
 from hilrig.robot import JOINTS
 
@@ -22,12 +24,17 @@ W_FRESH, W_FORCE, W_WRENCH, W_MOMENT, W_GRAVITY_S = 0, 9, 18, 24, 27
 W_Q_IK, W_TARGET, W_Q_CMD = 30, 36, 42
 WORK_SIZE = 48
 
+# One control tick: the fields of TICK_FIELDS (names, units, which ControllerState array each
+# fills), in that order.
+TICK_DTYPE = np.dtype(
+    [(f.name, f.kind, (f.size,)) if f.size else (f.name, f.kind) for f in TICK_FIELDS]
+)
+
 
 @njit(cache=True)
 def put_tick_row(
     rows: NDArray[np.void],
     header: NDArray[np.int64],
-    drops_from: tuple[NDArray[np.int64], ...],
     work: NDArray[np.float64],
     results: NDArray[np.float64],
     contact: NDArray[np.int8],
@@ -40,15 +47,13 @@ def put_tick_row(
     compute_ns: int,
     lateness_ns: int,
     overruns: int,
-    other_drops: int,
+    queue_drops: int,
 ) -> bool:
     """The tick's row (TICK_DTYPE) into the next free slot of the ring (``rows``, ``header``),
     published; False if the ring was full (a drop, counted).
 
     ``results`` is the controller's ``out`` (offset, rate, damping, stiffness rows of one tick);
-    the timing fields come as plain ints (a numpy store from Python costs microseconds). The
-    row's ``queue_drops`` are the drops counted in the headers ``drops_from`` (this ring's among
-    them) plus ``other_drops``.
+    the timing fields come as plain ints (a numpy store from Python costs microseconds).
     """
     slot = reserve_slot(header, rows.shape[0])
     if slot < 0:
@@ -60,9 +65,7 @@ def put_tick_row(
     row.compute_ns = compute_ns
     row.lateness_ns = lateness_ns
     row.overruns = overruns
-    row.queue_drops = other_drops
-    for words in drops_from:
-        row.queue_drops += words[DROPPED_AT]
+    row.queue_drops = queue_drops
     for i in range(AXES):
         f = work[W_FORCE + i]
         b = results[2, 0, i]
@@ -84,3 +87,52 @@ def put_tick_row(
         row.commanded_q[j] = work[W_Q_CMD + j]
     publish(header, 1)
     return True
+
+
+# (dtype, dimensions) of row_entry's arrays; then the headers whose drops the row adds up
+ROW_LAYOUT: Layout = (
+    (TICK_DTYPE, 1),  # the ring's rows
+    (np.int64, 1),  # its header
+    (np.float64, 1),  # the tick's work
+    (np.float64, 3),  # the controller's out
+    (np.int8, 2),  # its contact codes
+    *((np.float64, 1),) * 3,  # its masses, the desired position and orientation
+)
+DROPS_FROM = len(ROW_LAYOUT)  # the table's first header whose drops count
+
+
+@njit(cache=True)
+def row_entry(
+    table: NDArray[np.int64],
+    t_ns: int,
+    tick: int,
+    period_ns: int,
+    compute_ns: int,
+    lateness_ns: int,
+    overruns: int,
+    other_drops: int,
+) -> bool:
+    """:func:`put_tick_row` on the arrays of ``table`` (ROW_LAYOUT, then headers): the row's
+    ``queue_drops`` are the drops counted in those headers (the ring's own among them) plus
+    ``other_drops``."""
+    queue_drops = other_drops
+    for i in range(DROPS_FROM, table.shape[0]):
+        queue_drops += view1(table, i, np.int64)[DROPPED_AT]
+    f8 = np.float64
+    return put_tick_row(
+        view1(table, 0, TICK_DTYPE),
+        view1(table, 1, np.int64),
+        view1(table, 2, f8),
+        view3(table, 3, f8),
+        view2(table, 4, np.int8),
+        view1(table, 5, f8),
+        view1(table, 6, f8),
+        view1(table, 7, f8),
+        t_ns,
+        tick,
+        period_ns,
+        compute_ns,
+        lateness_ns,
+        overruns,
+        queue_drops,
+    )

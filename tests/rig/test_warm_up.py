@@ -54,8 +54,8 @@ def test_no_kernel_is_loaded_once_the_devices_talk(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr[-2000:]
     loaded = json.loads(done.stdout.splitlines()[-1])
     kernels = {  # the tick's, the trajectory's, the drivers', the rings', the histograms'
-        "hilrig.tick.kernel.tick_kernel",
-        "hilrig.tick.row.put_tick_row",
+        "hilrig.tick.step_kernel.tick_entry",  # the tick's and its row's, by address
+        "hilrig.tick.row.row_entry",
         "hilrig.ring_kernels.put_rows",
         "hilrig.drivers.ft.frames.receive",
         "hilrig.drivers.robot_state.frames.receive",
@@ -65,6 +65,7 @@ def test_no_kernel_is_loaded_once_the_devices_talk(tmp_path: Path) -> None:
         "hilrig.drivers.robot_state.frames.decode",
         "hilrig.drivers.joint_targets.frame.fill_request",
         "hilrig.timing.add_duration",
+        "hilrig.rig.loop_figures.add_period",
     }
     assert kernels <= set(loaded["before"])
     assert loaded["after"] == []

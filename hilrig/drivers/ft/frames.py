@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from hilrig.array_table import Layout, view1
 from hilrig.compiled import njit
 from hilrig.drivers.compiled_decoder import CompiledDecoder, find, finish, unsigned_le
 from hilrig.drivers.ft.wire import (
@@ -48,6 +49,7 @@ class FtFrames(CompiledDecoder):
         super().__init__(
             frame,
             receive,
+            RECEIVE_LAYOUT,
             (np.array(limits), np.zeros(1, dtype=np.uint32)),
             dtype=SAMPLE_DTYPE,
             counters=LOCKED + 1,
@@ -124,21 +126,31 @@ def frame(
     return finish(buffer, rows, newest, counters, pos, end, n)
 
 
+# receive's table: buffer, rows, newest, counters, limits, bits, io
+RECEIVE_LAYOUT: Layout = (
+    (np.uint8, 1),
+    (SAMPLE_DTYPE, 1),
+    (SAMPLE_DTYPE, 1),
+    (np.int64, 1),
+    (np.float64, 1),
+    (np.uint32, 1),
+    (np.int64, 1),
+)
+
+
 @njit(cache=True)
-def receive(
-    buffer: NDArray[np.uint8],
-    rows: NDArray[np.void],
-    newest: NDArray[np.void],
-    counters: NDArray[np.int64],
-    limits: NDArray[np.float64],
-    bits: NDArray[np.uint32],
-    io: NDArray[np.int64],
-    fd: int,
-    t_ns: int,
-) -> int:
-    """read(2) from ``fd`` into the buffer after the held bytes, then :func:`frame` them."""
-    count = read_into(fd, buffer, counters[counters.shape[0] - 1], READ_BYTES, io)
-    return frame(buffer, rows, newest, counters, limits, bits, count, t_ns) if count > 0 else 0
+def receive(table: NDArray[np.int64], fd: int, t_ns: int) -> int:
+    """read(2) from ``fd`` into the buffer after the held bytes, then :func:`frame` them (the
+    arrays of RECEIVE_LAYOUT by address)."""
+    buffer, counters = view1(table, 0, np.uint8), view1(table, 3, np.int64)
+    count = read_into(
+        fd, buffer, counters[counters.shape[0] - 1], READ_BYTES, view1(table, 6, np.int64)
+    )
+    if count <= 0:
+        return 0
+    rows, newest = view1(table, 1, SAMPLE_DTYPE), view1(table, 2, SAMPLE_DTYPE)
+    limits, bits = view1(table, 4, np.float64), view1(table, 5, np.uint32)
+    return frame(buffer, rows, newest, counters, limits, bits, count, t_ns)
 
 
 @njit(cache=True, inline="always")

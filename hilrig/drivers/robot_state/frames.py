@@ -20,6 +20,7 @@ from dataclasses import fields
 import numpy as np
 from numpy.typing import NDArray
 
+from hilrig.array_table import Layout, view1
 from hilrig.compiled import njit
 from hilrig.drivers.compiled_decoder import CompiledDecoder, find, finish, unsigned_le
 from hilrig.drivers.robot_state.crc import crc32
@@ -64,6 +65,7 @@ class StateFrames(CompiledDecoder):
         super().__init__(
             decode,
             receive,
+            RECEIVE_LAYOUT,
             (_MAGIC, _LIMITS, np.zeros(1, dtype=np.uint64)),
             dtype=STATE_DTYPE,
             counters=LAST_SEQUENCE + 1,
@@ -126,24 +128,34 @@ def decode(
     return finish(buffer, rows, newest, counters, start, end, n)
 
 
+# receive's table: buffer, rows, newest, counters, magic, limits, bits, io
+RECEIVE_LAYOUT: Layout = (
+    (np.uint8, 1),
+    (STATE_DTYPE, 1),
+    (STATE_DTYPE, 1),
+    (np.int64, 1),
+    (np.uint8, 1),
+    (np.float64, 1),
+    (np.uint64, 1),
+    (np.int64, 1),
+)
+
+
 @njit(cache=True)
-def receive(
-    buffer: NDArray[np.uint8],
-    rows: NDArray[np.void],
-    newest: NDArray[np.void],
-    counters: NDArray[np.int64],
-    magic: NDArray[np.uint8],
-    limits: NDArray[np.float64],
-    bits: NDArray[np.uint64],
-    io: NDArray[np.int64],
-    fd: int,
-    t_ns: int,
-) -> int:
-    """read(2) from ``fd`` into the buffer after the held bytes, then :func:`decode` them."""
-    count = read_into(fd, buffer, counters[counters.shape[0] - 1], RECV_BYTES, io)
+def receive(table: NDArray[np.int64], fd: int, t_ns: int) -> int:
+    """read(2) from ``fd`` into the buffer after the held bytes, then :func:`decode` them (the
+    arrays of RECEIVE_LAYOUT by address)."""
+    buffer, counters = view1(table, 0, np.uint8), view1(table, 3, np.int64)
+    count = read_into(
+        fd, buffer, counters[counters.shape[0] - 1], RECV_BYTES, view1(table, 7, np.int64)
+    )
     if count <= 0:
         return 0
-    return decode(buffer, rows, newest, counters, magic, limits, bits, count, t_ns)
+    rows, newest = view1(table, 1, STATE_DTYPE), view1(table, 2, STATE_DTYPE)
+    magic, limits = view1(table, 4, np.uint8), view1(table, 5, np.float64)
+    return decode(
+        buffer, rows, newest, counters, magic, limits, view1(table, 6, np.uint64), count, t_ns
+    )
 
 
 @njit(cache=True, inline="always")
