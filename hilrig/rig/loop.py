@@ -56,16 +56,17 @@ from hilrig.rig.events import EventDetector
 from hilrig.rig.loop_figures import LoopStatus, LoopSummary
 from hilrig.rig.virtual import VirtualInput
 from hilrig.robot import RobotModel
-from hilrig.tick.kernel import (
-    COMMAND_OK,
-    CONTACT_CHANGED,
-    FRESH,
-    HELD,
-    ROBOT_OK,
-    SENSOR_OK,
-    STOP_NOW,
-    CompiledTick,
-    TickInputs,
+from hilrig.tick.kernel import CONTACT_CHANGED, FRESH, HELD, STOP_NOW, CompiledTick, TickInputs
+from hilrig.tick.loop_step import (
+    CLAMP_CHANGED,
+    HOLD_UNTIL_NS,
+    IS_STOPPED,
+    REPORT,
+    ROBOT_CHANGED,
+    ROBOT_IS_OK,
+    SENSOR_CHANGED,
+    SENSOR_IS_OK,
+    loop_words,
 )
 from hilrig.tick.safety import SafetyClamp
 from hilrig.tick.trajectory import Trajectory
@@ -166,6 +167,8 @@ class ControlLoop:
         self.summary = LoopSummary()
         self._period_ns = config.period_ns
         self._stale_ns = config.stale_after_ticks * config.period_ns
+        self._words = loop_words(self._stale_ns)  # the loop's settings and last states, compiled
+        self._step = self._kernel.loop_step(newest_sample, newest_state, self._words)
         self._inputs = inputs = self._kernel.inputs
         inputs.rotation_d[:] = trajectory.rotation  # the task keeps the start orientation
         inputs.orientation_d[:] = trajectory.orientation
@@ -174,7 +177,6 @@ class ControlLoop:
         self._put_row: Callable[..., bool] | None = None  # bound to the ring while running
         self._send_ns = 0
         self._command_errors = targets.errors
-        self._command_hold_until_ns = 0
         self._sent = targets.stats.sent
         self._acknowledged = targets.stats.written
         self._playing = False
@@ -262,56 +264,60 @@ class ControlLoop:
 
     def tick(self, start_ns: int, nominal_ns: int) -> None:
         """One tick on the newest samples, started at ``start_ns`` for ``nominal_ns``."""
-        summary = self.summary
-        events = self._events
-        kernel = self._kernel
-        sample_t_ns = self._sensor.latest_t_ns
-        robot_t_ns = self._robot.latest_t_ns
-        sensor_ok = sample_t_ns >= 0 and start_ns - sample_t_ns <= self._stale_ns
-        robot_ok = robot_t_ns >= 0 and start_ns - robot_t_ns <= self._stale_ns
-        events.link("wrist F/T sensor", sensor_ok, start_ns)
-        events.link("robot joint state", robot_ok, start_ns)
         targets = self._targets
         if targets.errors != self._command_errors:  # a Modbus exception, timeout or lost link
             self._command_errors = targets.errors
-            self._command_hold_until_ns = start_ns + COMMAND_FAULT_HOLD_NS
-            events.fault("joint targets", str(targets.last_error), start_ns)
-        flags = (SENSOR_OK if sensor_ok else 0) | (ROBOT_OK if robot_ok else 0)
-        if start_ns >= self._command_hold_until_ns:
-            flags |= COMMAND_OK
-        # (the kernel reads the drivers' newest samples only when both are fresh, so present)
+            self._words[HOLD_UNTIL_NS] = start_ns + COMMAND_FAULT_HOLD_NS
+            self._events.fault("joint targets", str(targets.last_error), start_ns)
         # the task is sampled at the tick's nominal time, not its jittery start, so the
         # commanded path is as smooth as the controller's fixed dt assumes
         t_s = (nominal_ns - self._t0_ns) / 1e9
         self._desired(t_s)
         if self._virtual is not None:
             self._play(t_s, nominal_ns)
-        result = kernel.step(flags)
-        stopped = kernel.stopped
-        source_ns = sample_t_ns if (result & FRESH) and not (result & HELD) else 0
+        # freshness, flags, the compiled tick and what changed, in one call (tick/loop_step.py)
+        result = self._step(start_ns)
+        fresh = result & FRESH and not result & HELD
         sending = time.monotonic_ns()
-        targets.write(self._q_cmd, Mode.STOP if stopped else Mode.TRACK, source_ns=source_ns)
+        targets.write(
+            self._q_cmd,
+            Mode.STOP if result & IS_STOPPED else Mode.TRACK,
+            source_ns=self._sensor.latest_t_ns if fresh else 0,
+        )
         self._send_ns = time.monotonic_ns() - sending
-        if result & CONTACT_CHANGED:
-            events.contact(self._controller.contact, start_ns)
-        if result & STOP_NOW:
-            force = kernel.force
-            events.fault(
-                "safety",
-                "protective limit: robot stopped",
-                start_ns,
-                value=math.hypot(force[0], force[1], force[2]),
-            )
-        events.clamp(result & 0xFF, start_ns)
+        if result & REPORT:
+            self._report(result, start_ns)
         self._track_latency()
         if result & HELD:
-            summary.hold_ticks += 1
+            self.summary.hold_ticks += 1
             self.status.holding = (
-                "stopped" if stopped else ("command fault" if result & FRESH else "stale input")
+                "stopped"
+                if result & IS_STOPPED
+                else ("command fault" if result & FRESH else "stale input")
             )
         else:
             self.status.holding = ""
         self._log_tick(start_ns, nominal_ns)
+
+    def _report(self, result: int, t_ns: int) -> None:
+        """The events of a tick whose result says something changed."""
+        events = self._events
+        if result & SENSOR_CHANGED:
+            events.link("wrist F/T sensor", bool(result & SENSOR_IS_OK), t_ns)
+        if result & ROBOT_CHANGED:
+            events.link("robot joint state", bool(result & ROBOT_IS_OK), t_ns)
+        if result & CONTACT_CHANGED:
+            events.contact(self._controller.contact, t_ns)
+        if result & STOP_NOW:
+            force = self._kernel.force
+            events.fault(
+                "safety",
+                "protective limit: robot stopped",
+                t_ns,
+                value=math.hypot(force[0], force[1], force[2]),
+            )
+        if result & CLAMP_CHANGED:
+            events.clamp(result & 0xFF, t_ns)
 
     def _play(self, t_s: float, t_ns: int) -> None:
         """This tick's row of the virtual collision into the extra input; mark start and end."""

@@ -13,9 +13,10 @@ from hilrig.drivers.robot_state.frames import StateFrames
 from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.rig.loop_figures import LoopSummary
 from hilrig.rig.recorder_feed import RecorderFeed
-from hilrig.rig.records import AXES
+from hilrig.rig.records import AXES, FT_DTYPE, JOINT_DTYPE
 from hilrig.robot import RobotModel
 from hilrig.tick.kernel import COMMAND_OK, ROBOT_OK, SENSOR_OK, CompiledTick
+from hilrig.tick.loop_step import loop_words
 from hilrig.tick.safety import SafetyClamp, SafetyConfig
 from hilrig.tick.trajectory import make_trajectory
 from hilrig.tick.trajectory_kernel import desired_writer
@@ -43,6 +44,8 @@ def warm_up() -> None:
     zeros6 = np.zeros(6)
     flags = SENSOR_OK | ROBOT_OK | COMMAND_OK
     tick.run(flags, zeros6, q0, zeros6, np.zeros(AXES), position, trajectory.rotation)
+    newest = (np.zeros(1, dtype=FT_DTYPE), np.zeros(1, dtype=JOINT_DTYPE))
+    tick.loop_step(*newest, loop_words(0))(0)  # the live loop's
     RequestFrame(RegisterMap()).fill(q0, 0, Mode.HOLD)  # the Modbus request's kernels
     FtFrames()  # the drivers' decoders compile as they are made
     StateFrames()

@@ -4,7 +4,8 @@
 from the same objects the reference path uses (controller, clamp, compensator, robot model) and
 binds the kernel to them by address (:func:`~hilrig.tick.step_kernel.tick_entry`, an
 :class:`~hilrig.array_table.ArrayTable`): :meth:`CompiledTick.step` is one compiled call with
-one array to unbox. :meth:`CompiledTick.row_writer` binds the tick's recorder row the same way.
+one array to unbox. :meth:`CompiledTick.loop_step` (the live loop's tick, judging its inputs'
+freshness too) and :meth:`CompiledTick.row_writer` (the tick's recorder row) bind the same way.
 The kernel's flags and counters are re-exported here for the loop and the replay.
 """
 
@@ -22,6 +23,7 @@ from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.recording.schema import AXES
 from hilrig.robot import JOINTS, RobotModel
 from hilrig.robot.kinematics import CompiledChain, ik_work
+from hilrig.tick.loop_step import LOOP_LAYOUT, loop_entry
 from hilrig.tick.row import ROW_LAYOUT, W_FORCE, W_Q_CMD, W_Q_IK, WORK_SIZE, row_entry
 from hilrig.tick.safety import SafetyClamp
 from hilrig.tick.step_kernel import (
@@ -202,6 +204,18 @@ class CompiledTick:
         i.position_d[:] = position_d
         i.rotation_d[:] = rotation_d
         return self.step(flags_in)
+
+    def loop_step(
+        self,
+        newest_sample: NDArray[np.void],
+        newest_state: NDArray[np.void],
+        words: NDArray[np.int64],
+    ) -> Callable[[int], int]:
+        """``step(start_ns) -> result``: the live loop's tick (:func:`loop_entry`, by address),
+        judging freshness from the drivers' ``newest_sample`` and ``newest_state`` rows (kept
+        current in place) and the loop's ``words`` (:func:`~hilrig.tick.loop_step.loop_words`)."""
+        arrays = (*self.kernel_args(), newest_sample, newest_state, words)
+        return ArrayTable(arrays).bind(loop_entry, LOOP_LAYOUT, last=(0,))
 
     def row_writer(
         self,

@@ -56,6 +56,7 @@ def test_no_kernel_is_loaded_once_the_devices_talk(tmp_path: Path) -> None:
     kernels = {  # the tick's, the trajectory's, the drivers', the rings', the histograms'
         "hilrig.tick.step_kernel.tick_entry",  # the tick's and its row's, by address
         "hilrig.tick.row.row_entry",
+        "hilrig.tick.loop_step.loop_entry",
         "hilrig.ring_kernels.put_rows",
         "hilrig.drivers.ft.frames.receive",
         "hilrig.drivers.robot_state.frames.receive",
