@@ -51,7 +51,9 @@ class StateDecoder(Protocol):
         ...
 
     def feed(self, count: int, t_ns: int) -> int:
-        """Decode the ``count`` bytes received into ``free``; the frames are ``rows[:n]``."""
+        """Decode the ``count`` bytes received into ``free``; the frames are ``rows[:n]``, each
+        stamped ``t_ns``, and the last of them is copied into ``newest`` (the loop judges the
+        link's freshness from its ``t_ns``)."""
         ...
 
     @property
