@@ -26,7 +26,10 @@ Rows = NDArray[np.void]
 class StreamLink(ABC):
     """A polled stream's rows and counts; subclasses read the link (``_pump``, ``_drop``)."""
 
-    def __init__(self, newest: Rows, backoff: Backoff) -> None:
+    def __init__(self, rows: Rows, newest: Rows, backoff: Backoff) -> None:
+        self.rows = rows
+        """The decoder's rows: a poll's rows are their first ``n`` (but after a connect, when
+        the rows read while connecting come first)."""
         self.newest = newest
         """The newest row, kept current in place by the decoder (its fields are views); it
         means something once :attr:`latest_t_ns` >= 0."""

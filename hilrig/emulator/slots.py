@@ -8,10 +8,10 @@ a robot controller serves its fieldbus once per cycle. The descriptors are watch
 one system call a slot that returns only the ready ones (``select`` rebuilt and scanned the
 whole set every slot, about a tenth of the rig's time per slot here). One wake-up a period,
 whatever the traffic: that is what keeps the rig cheap on a small machine (a wake-up per Modbus
-request cost it about 10 % of a core more). No spinning: under SCHED_FIFO (or with 1 us timer slack) the
-sleep ends within tens of microseconds, which is all the precision an emulated device needs. A
-loop more than ``MAX_BEHIND`` periods late skips the missed slots (counted) instead of bursting
-them.
+request cost it about 10 % of a core more). No spinning: under SCHED_FIFO (or with 1 us timer
+slack) the sleep ends within tens of microseconds, which is all the precision an emulated device
+needs. A loop more than ``MAX_BEHIND`` periods late skips the missed slots (counted) instead of
+bursting them.
 
 ``run()`` puts its thread under SCHED_FIFO at ``RIG_PRIORITY`` (40, below the control loop's 50:
 the rig stands for hardware that the lab PC's load does not slow down) where the OS permits it

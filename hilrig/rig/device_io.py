@@ -5,7 +5,8 @@ joint-target writer, all polled (no driver thread), and the recorder's feed. ``w
 ``select`` until one of them has data or a deadline passes; ``pump`` reads each without blocking
 and puts every sample into its ring at once, from the first sample on (also while the session
 tares and waits for the recorder, before the first tick). The drivers return their samples as
-rows of the rings' own dtypes, which one compiled call a link stores in its shared ring.
+rows of the rings' own dtypes, which one compiled call a link stores in its shared ring (bound
+to the driver's rows: ``Ring.feed_from``).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from hilrig.drivers.ft.link import FtSerial, SampleRows
 from hilrig.drivers.joint_targets.link import JointTargetsWriter
 from hilrig.drivers.robot_state.link import RobotStateClient
 from hilrig.rig.recorder_feed import RecorderFeed
+from hilrig.rig.rings import Ring
 
 
 @dataclass
@@ -30,6 +32,11 @@ class DeviceIO:
     targets: JointTargetsWriter
     feed: RecorderFeed | None = None
     samples_read: int = 0  # wrist samples and joint states read so far
+
+    def __post_init__(self) -> None:
+        if self.feed is not None:  # a poll's rows: the first of its driver's rows
+            self.feed.joint.feed_from(self.robot.rows)
+            self.feed.ft.feed_from(self.sensor.rows)
 
     def wait(self, deadline_ns: int) -> int:
         """Sleep until the wrist sensor has data or ``deadline_ns`` (monotonic); returns the
@@ -59,11 +66,20 @@ class DeviceIO:
         returns the wrist samples completed now, oldest first (the last is the newest)."""
         feed = self.feed
         states = self.robot.poll(now_ns)  # rows of the ring's own dtype
-        if feed is not None:
-            feed.joint.put(states)  # one compiled call, drops counted
+        if feed is not None and len(states):
+            _store(feed.joint, states, self.robot.rows)  # one compiled call, drops counted
         self.targets.poll(now_ns)
         samples = self.sensor.poll(now_ns)
         self.samples_read += len(states) + len(samples)
-        if feed is not None:
-            feed.ft.put(samples)  # rows of the ring's own dtype too
+        if feed is not None and len(samples):
+            _store(feed.ft, samples, self.sensor.rows)  # rows of the ring's own dtype too
         return samples
+
+
+def _store(ring: Ring, rows: SampleRows, driver_rows: SampleRows) -> None:
+    """A poll's ``rows`` into ``ring``: by the call bound to the driver's rows when they are
+    their first (every poll but the one after a connect)."""
+    if rows.base is driver_rows:
+        ring.put_first(len(rows))
+    else:
+        ring.put(rows)

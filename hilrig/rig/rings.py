@@ -25,7 +25,9 @@ would unlink the block when it exits.
 
 from __future__ import annotations
 
+import gc
 import secrets
+from collections.abc import Callable
 from dataclasses import dataclass
 from multiprocessing import shared_memory
 from typing import Any
@@ -33,8 +35,18 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from hilrig.array_table import ArrayTable, Layout, view1, view2
+from hilrig.compiled import njit
 from hilrig.errors import RecordingError
-from hilrig.ring_kernels import DROPPED_AT, READ_AT, READ_SEEN_AT, WRITE_AT, put_rows
+from hilrig.ring_kernels import (
+    DROPPED_AT,
+    READ_AT,
+    READ_SEEN_AT,
+    WRITE_AT,
+    publish,
+    put_rows,
+    reserve_slot,
+)
 
 Rows = npt.NDArray[np.void]
 """Structured rows of a ring's dtype; a 0-d array of it is one writable row (a slot)."""
@@ -99,6 +111,7 @@ class Ring:
         self._read = self._words[READ_AT]  # consumer's copy of its own index
         self._reserved = False
         self._closed = False
+        self._put_first: Callable[[int], int] = _not_fed
 
     @classmethod
     def create(cls, spec: RingSpec) -> Ring:
@@ -184,6 +197,27 @@ class Ring:
         stored: int = put_rows(self._data, self.header, rows)
         return stored
 
+    def feed_from(self, source: Rows) -> None:
+        """Bind :meth:`put_first` to ``source``, rows of the ring's dtype that stay the ones
+        bound (a driver's decoder rows): a poll's rows then go into the ring by one compiled
+        call that unboxes one array (:func:`put_first_rows`), not three."""
+        if source.dtype != self.spec.dtype or not source.flags.c_contiguous:
+            raise RecordingError(
+                f"ring {self.spec.name}: cannot be fed from rows of {source.dtype}"
+            )
+        itemsize = self.spec.dtype.itemsize
+        arrays = (
+            self._data.view(np.uint8).reshape(self._capacity, itemsize),
+            self.header,
+            source.view(np.uint8).reshape(len(source), itemsize),
+        )
+        self._put_first = ArrayTable(arrays).bind(put_first_rows, _PUT_FIRST, last=(0,))
+
+    def put_first(self, count: int) -> int:
+        """:meth:`put` of the first ``count`` rows of the source bound by :meth:`feed_from`."""
+        stored: int = self._put_first(count)
+        return stored
+
     def push(self, *values: Any) -> bool:
         """Reserve, fill with ``values`` (one per field, in dtype order) and commit. Returns
         False if the ring was full (counted as a drop). Converts its values, so it is slower
@@ -244,20 +278,50 @@ class Ring:
         if not self._closed:
             self._closed = True
             self._slots = ()
+            self._put_first = _not_fed  # it holds views of the block
             del self._data, self.header
             self._words.release()
         try:
             self._shm.close()
-        except BufferError as err:
-            raise RecordingError(
-                f"ring {self.spec.name}: cannot unmap while a reserved slot is still referenced"
-            ) from err
+        except BufferError:
+            # numba's first compile of a kernel bound to the block (feed_from) can leave its
+            # frames in a reference cycle that holds the bound views until a collection
+            gc.collect()
+            try:
+                self._shm.close()
+            except BufferError as err:
+                raise RecordingError(
+                    f"ring {self.spec.name}: cannot unmap while a reserved slot is still referenced"
+                ) from err
 
     def unlink(self) -> None:
         """Remove the block's name (creator only; mappings stay valid until closed)."""
         if not self._owner:
             raise RecordingError(f"ring {self.spec.name}: only its creator unlinks it")
         self._shm.unlink()
+
+
+_PUT_FIRST: Layout = ((np.uint8, 2), (np.int64, 1), (np.uint8, 2))  # slots, header, source
+
+
+@njit(cache=True)
+def put_first_rows(table: npt.NDArray[np.int64], count: int) -> int:
+    """The first ``count`` source rows stored and published as :func:`put_rows` does, the rows
+    as bytes (_PUT_FIRST: the ring's slots, its header, the source rows)."""
+    slots, header = view2(table, 0, np.uint8), view1(table, 1, np.int64)
+    source = view2(table, 2, np.uint8)
+    stored = 0
+    for i in range(count):
+        slot = reserve_slot(header, slots.shape[0])
+        if slot >= 0:
+            slots[slot, :] = source[i, :]
+            publish(header, 1)
+            stored += 1
+    return stored
+
+
+def _not_fed(count: int) -> int:
+    raise RecordingError("ring: put_first before feed_from (or after close)")
 
 
 def _header(shm: shared_memory.SharedMemory) -> memoryview:

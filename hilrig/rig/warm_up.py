@@ -53,8 +53,10 @@ def warm_up() -> None:
     LoopSummary().period_adder()(0, 0, 0, 0)
     feed = RecorderFeed(rows=2, events=1)  # rings as the session's
     try:
-        for ring in (feed.ft, feed.joint):  # the drivers' rows into their rings
+        for ring in (feed.ft, feed.joint):  # the drivers' rows into their rings, both ways
             ring.put(np.zeros(1, dtype=ring.spec.dtype))
+            ring.feed_from(np.zeros(1, dtype=ring.spec.dtype))
+            ring.put_first(1)
         put_row = tick.row_writer(feed.tick.rows, feed.tick.header, feed.headers)
         put_row(0, 0, 0, 0, 0, 0, 0)
         del put_row  # it holds the ring's rows, which must be released before unmapping

@@ -196,6 +196,7 @@ OPS = st.lists(
         st.tuples(st.just("abandon"), st.just(1)),
         st.tuples(st.just("read"), st.just(0)),
         st.tuples(st.just("put"), st.integers(0, 10)),
+        st.tuples(st.just("put_first"), st.integers(0, 10)),
     ),
     max_size=25,
 )
@@ -207,6 +208,8 @@ def test_consumer_sees_exactly_the_committed_rows_in_order(
     peer: Peer, capacity: int, ops: list[tuple[str, int]]
 ) -> None:
     ring = Ring.create(RingSpec.unique("prop", ROW, capacity))
+    source = np.zeros(10, dtype=ROW)  # a driver's rows: put_first stores their first n
+    ring.feed_from(source)
     try:
         peer.ask("attach", ring.spec)
         pending: list[int] = []  # committed, not read yet: the model of the ring
@@ -221,13 +224,13 @@ def test_consumer_sees_exactly_the_committed_rows_in_order(
                 seen += pending
                 pending = []
                 continue
-            if op == "put":  # a batch by one compiled call, on the same ring
+            if op in ("put", "put_first"):  # a batch by one compiled call, on the same ring
                 first = len(committed) + drops
-                batch = np.zeros(n, dtype=ROW)
+                batch = source[:n] if op == "put_first" else np.zeros(n, dtype=ROW)
                 batch["id"] = np.arange(first, first + n)
                 batch["value"] = np.reshape([value_of(i) for i in range(first, first + n)], (n, 3))
                 room = min(n, capacity - len(pending))
-                assert ring.put(batch) == room
+                assert (ring.put_first(n) if op == "put_first" else ring.put(batch)) == room
                 pending += list(range(first, first + room))
                 committed += list(range(first, first + room))
                 drops += n - room
@@ -258,3 +261,20 @@ def test_consumer_sees_exactly_the_committed_rows_in_order(
     finally:
         ring.unlink()
         ring.close()
+
+
+def test_a_ring_is_fed_only_rows_of_its_own_dtype_and_unbinds_them_at_close() -> None:
+    ring = Ring.create(RingSpec.unique("fed", ROW, 4))
+    try:
+        with pytest.raises(RecordingError) as error:
+            ring.feed_from(np.zeros(3, dtype=np.float64))
+        assert str(error.value) == f"ring {ring.spec.name}: cannot be fed from rows of float64"
+        with pytest.raises(RecordingError, match="put_first before feed_from"):
+            ring.put_first(1)
+        ring.feed_from(np.zeros(3, dtype=ROW))
+        assert ring.put_first(2) == 2
+    finally:
+        ring.unlink()
+        ring.close()  # the bound call's views of the block go first: it unmaps
+    with pytest.raises(RecordingError, match="put_first before feed_from"):
+        ring.put_first(1)

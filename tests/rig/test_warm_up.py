@@ -58,6 +58,7 @@ def test_no_kernel_is_loaded_once_the_devices_talk(tmp_path: Path) -> None:
         "hilrig.tick.row.row_entry",
         "hilrig.tick.loop_step.loop_entry",
         "hilrig.ring_kernels.put_rows",
+        "hilrig.rig.rings.put_first_rows",
         "hilrig.drivers.ft.frames.receive",
         "hilrig.drivers.robot_state.frames.receive",
         "hilrig.tick.trajectory_kernel.circle_into",

@@ -61,7 +61,7 @@ class FtSerial(StreamLink, Reader[np.void]):
         self._framer = FtFrames(framer_config)
         # newest: the newest sample, a row the framer keeps current in place (its fields are
         # views: newest["wrench"][0] is always the newest wrench)
-        super().__init__(self._framer.newest, Backoff(backoff_s))
+        super().__init__(self._framer.rows, self._framer.newest, Backoff(backoff_s))
         self._stall_after_ns = round(stall_after_s * 1e9)
         self._restart_after_ns = round(restart_after_s * 1e9)
         self._serial: serial.Serial | None = None

@@ -80,7 +80,7 @@ class RobotStateClient(StreamLink, Reader[np.void]):
         self._compiled = decoder if isinstance(decoder, CompiledDecoder) else None
         # newest: the newest frame, a row the decoder keeps current in place (its fields are
         # views: newest["q"][0] is always the newest q)
-        super().__init__(decoder.newest, Backoff(backoff_s))
+        super().__init__(decoder.rows, decoder.newest, Backoff(backoff_s))
         self._connect_timeout_ns = round(connect_timeout_s * 1e9)
         self._stall_after_ns = round(stall_after_s * 1e9)
         self._sock: socket.socket | None = None  # connecting or connected
