@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from hilrig.array_table import ArrayTable, Layout
+from hilrig.array_table import ArrayTable, Layout, view1
 from hilrig.compiled import njit
-from hilrig.drivers.sys_read import IO_WORDS, LAST_READ
+from hilrig.drivers.sys_read import IO_WORDS, LAST_READ, read_into
 from hilrig.timing import bound_kernel
 
 
@@ -98,6 +98,21 @@ class CompiledDecoder:
     def forget_held(self) -> None:
         """Drop the bytes held from earlier feeds (after a reconnect), uncounted."""
         self.counters[self._held] = 0
+
+
+# Rows of a receiver's table (an ArrayTable): the buffer, rows, newest, counters, then the
+# decoder's constants; its io array last.
+BUFFER, ROWS, NEWEST, COUNTERS = range(4)
+
+
+@njit(cache=True, inline="always")
+def read_after_held(table: NDArray[np.int64], fd: int, size: int) -> int:
+    """read(2) of up to ``size`` bytes from ``fd`` into a receiver's buffer after the bytes it
+    holds (:func:`~.sys_read.read_into`, its io array the table's last row)."""
+    counters = view1(table, COUNTERS, np.int64)
+    held = counters[counters.shape[0] - 1]
+    io = view1(table, table.shape[0] - 1, np.int64)
+    return read_into(fd, view1(table, BUFFER, np.uint8), held, size, io)
 
 
 @njit(cache=True, inline="always")

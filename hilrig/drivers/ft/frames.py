@@ -21,7 +21,17 @@ from numpy.typing import NDArray
 
 from hilrig.array_table import Layout, view1
 from hilrig.compiled import njit
-from hilrig.drivers.compiled_decoder import CompiledDecoder, find, finish, unsigned_le
+from hilrig.drivers.compiled_decoder import (
+    BUFFER,
+    COUNTERS,
+    NEWEST,
+    ROWS,
+    CompiledDecoder,
+    find,
+    finish,
+    read_after_held,
+    unsigned_le,
+)
 from hilrig.drivers.ft.wire import (
     FRAME_BYTES,
     HEADER,
@@ -30,7 +40,6 @@ from hilrig.drivers.ft.wire import (
     FramerConfig,
     FramerStats,
 )
-from hilrig.drivers.sys_read import read_into
 
 READ_BYTES = 65536  # what one feed takes at most: 2340 frames
 # the counters array, then the held bytes' count
@@ -142,13 +151,11 @@ RECEIVE_LAYOUT: Layout = (
 def receive(table: NDArray[np.int64], fd: int, t_ns: int) -> int:
     """read(2) from ``fd`` into the buffer after the held bytes, then :func:`frame` them (the
     arrays of RECEIVE_LAYOUT by address)."""
-    buffer, counters = view1(table, 0, np.uint8), view1(table, 3, np.int64)
-    count = read_into(
-        fd, buffer, counters[counters.shape[0] - 1], READ_BYTES, view1(table, 6, np.int64)
-    )
+    count = read_after_held(table, fd, READ_BYTES)
     if count <= 0:
         return 0
-    rows, newest = view1(table, 1, SAMPLE_DTYPE), view1(table, 2, SAMPLE_DTYPE)
+    buffer, counters = view1(table, BUFFER, np.uint8), view1(table, COUNTERS, np.int64)
+    rows, newest = view1(table, ROWS, SAMPLE_DTYPE), view1(table, NEWEST, SAMPLE_DTYPE)
     limits, bits = view1(table, 4, np.float64), view1(table, 5, np.uint32)
     return frame(buffer, rows, newest, counters, limits, bits, count, t_ns)
 

@@ -22,7 +22,17 @@ from numpy.typing import NDArray
 
 from hilrig.array_table import Layout, view1
 from hilrig.compiled import njit
-from hilrig.drivers.compiled_decoder import CompiledDecoder, find, finish, unsigned_le
+from hilrig.drivers.compiled_decoder import (
+    BUFFER,
+    COUNTERS,
+    NEWEST,
+    ROWS,
+    CompiledDecoder,
+    find,
+    finish,
+    read_after_held,
+    unsigned_le,
+)
 from hilrig.drivers.robot_state.crc import crc32
 from hilrig.drivers.robot_state.wire import (
     FRAME_BYTES,
@@ -35,7 +45,6 @@ from hilrig.drivers.robot_state.wire import (
     STATE_DTYPE,
     DecoderStats,
 )
-from hilrig.drivers.sys_read import read_into
 
 RECV_BYTES = 65536  # what one feed takes at most: 385 frames, far more than arrive in a tick
 # the counters array: DecoderStats's fields in order, then the decoder's own state
@@ -145,13 +154,11 @@ RECEIVE_LAYOUT: Layout = (
 def receive(table: NDArray[np.int64], fd: int, t_ns: int) -> int:
     """read(2) from ``fd`` into the buffer after the held bytes, then :func:`decode` them (the
     arrays of RECEIVE_LAYOUT by address)."""
-    buffer, counters = view1(table, 0, np.uint8), view1(table, 3, np.int64)
-    count = read_into(
-        fd, buffer, counters[counters.shape[0] - 1], RECV_BYTES, view1(table, 7, np.int64)
-    )
+    count = read_after_held(table, fd, RECV_BYTES)
     if count <= 0:
         return 0
-    rows, newest = view1(table, 1, STATE_DTYPE), view1(table, 2, STATE_DTYPE)
+    buffer, counters = view1(table, BUFFER, np.uint8), view1(table, COUNTERS, np.int64)
+    rows, newest = view1(table, ROWS, STATE_DTYPE), view1(table, NEWEST, STATE_DTYPE)
     magic, limits = view1(table, 4, np.uint8), view1(table, 5, np.float64)
     return decode(
         buffer, rows, newest, counters, magic, limits, view1(table, 6, np.uint64), count, t_ns
