@@ -11,7 +11,10 @@ allocated) and calls the kernel; :meth:`ArrayTable.bind` binds the entry to the 
 The entry states each array's dtype and number of dimensions, in the table's order: a table
 made from other arrays than the entry expects is refused by :meth:`ArrayTable.bind` when its
 ``layout`` differs (each kernel module keeps its entry and its layout side by side). Only
-C-contiguous arrays can be tabled, and a tabled array must never be resized.
+C-contiguous arrays can be tabled, and a tabled array must never be resized. The entry's views
+are writable even of a read-only array (the robot chain's constants are): numba's typing, which
+refuses a store into a read-only argument, no longer sees them, so the kernel must not write
+what it was given read-only.
 """
 
 from __future__ import annotations
