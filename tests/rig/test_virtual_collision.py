@@ -9,6 +9,7 @@ import pytest
 from hilrig.errors import HilrigError
 from hilrig.recording import load
 from hilrig.recording.samples import EventKind
+from hilrig.replay import verify
 from hilrig.rig import SessionConfig, VirtualInput, record_session
 
 
@@ -55,4 +56,10 @@ def test_a_virtual_collision_makes_the_robot_yield_and_replays_exactly(tmp_path:
     t = (state.index.to_numpy() - state.index[0]) / 1e9
     during = (t > 0.6) & (t < 1.4)
     assert state.loc[during, "force_1"].max() > 3.5  # the controller saw the push
-    assert state["offset_1"].max() > 0.01  # and the robot yielded by more than 1 cm in +y
+    # and the robot yielded in +y: by about 1.3 cm when every tick runs; a loaded machine
+    # merges frames, and fewer ticks integrate less (8.7 mm in one CI run with a third lost),
+    # so the size is checked against the controller's own response to the ticks that ran
+    offset = state["offset_1"]
+    assert offset.max() > 0.002 and offset.max() > -offset.min()
+    report = verify(result.path)  # the recorded inputs through the recorded controller
+    assert report.ok, report.worst.describe()
