@@ -24,7 +24,7 @@ from hilrig.recording.schema import AXES
 from hilrig.robot import JOINTS, RobotModel
 from hilrig.robot.kinematics import CompiledChain, ik_work
 from hilrig.tick.loop_step import LOOP_LAYOUT, loop_entry
-from hilrig.tick.row import ROW_LAYOUT, W_FORCE, W_Q_CMD, W_Q_IK, WORK_SIZE, row_entry
+from hilrig.tick.row import ROW_LAYOUT, W_FORCE, W_Q_CMD, W_Q_IK, WORK_SIZE, put_tick_row
 from hilrig.tick.safety import SafetyClamp
 from hilrig.tick.step_kernel import (
     COMMAND_OK,
@@ -224,12 +224,12 @@ class CompiledTick:
         drops_from: tuple[NDArray[np.int64], ...],
     ) -> Callable[..., bool]:
         """Puts this tick's row into the ring of ``rows`` and ``header`` when called with the
-        row's six timing ints and the drops counted elsewhere (:func:`row_entry`, its arrays by
+        row's six timing ints and the drops counted elsewhere (:func:`put_tick_row`, its arrays by
         address; ``drops_from``: the headers whose drops the row's ``queue_drops`` adds up)."""
         k, i = self.arrays, self.inputs
         arrays = (rows, header, self.work, k.out, k.contact, k.mass, i.position_d, i.orientation_d)
         layout = ROW_LAYOUT + ((np.int64, 1),) * len(drops_from)
-        return ArrayTable((*arrays, *drops_from)).bind(row_entry, layout, last=(0,) * 7)
+        return ArrayTable((*arrays, *drops_from)).bind(put_tick_row, layout, last=(0,) * 7)
 
 
 __all__ = [

@@ -2,8 +2,7 @@
 
 The row's layout is :data:`TICK_DTYPE` (the recording schema's ``TICK_FIELDS``, in order); the
 loop calls :func:`put_tick_row` through :meth:`hilrig.tick.kernel.CompiledTick.row_writer`
-(:func:`row_entry`, its arrays by address), which reserves the ring's slot, fills it and
-publishes it in one call.
+(its arrays by address), which reserves the ring's slot, fills it and publishes it in one call.
 """
 
 from __future__ import annotations
@@ -31,30 +30,45 @@ TICK_DTYPE = np.dtype(
 )
 
 
+# (dtype, dimensions) of put_tick_row's arrays; then the headers whose drops the row adds up
+ROW_LAYOUT: Layout = (
+    (TICK_DTYPE, 1),  # the ring's rows
+    (np.int64, 1),  # its header
+    (np.float64, 1),  # the tick's work
+    (np.float64, 3),  # the controller's out
+    (np.int8, 2),  # its contact codes
+    *((np.float64, 1),) * 3,  # its masses, the desired position and orientation
+)
+DROPS_FROM = len(ROW_LAYOUT)  # the table's first header whose drops count
+
+
 @njit(cache=True)
 def put_tick_row(
-    rows: NDArray[np.void],
-    header: NDArray[np.int64],
-    work: NDArray[np.float64],
-    results: NDArray[np.float64],
-    contact: NDArray[np.int8],
-    mass: NDArray[np.float64],
-    position_d: NDArray[np.float64],
-    orientation_d: NDArray[np.float64],
+    table: NDArray[np.int64],
     t_ns: int,
     tick: int,
     period_ns: int,
     compute_ns: int,
     lateness_ns: int,
     overruns: int,
-    queue_drops: int,
+    other_drops: int,
 ) -> bool:
-    """The tick's row (TICK_DTYPE) into the next free slot of the ring (``rows``, ``header``),
-    published; False if the ring was full (a drop, counted).
+    """The tick's row (TICK_DTYPE) into the next free slot of the ring, published; False if the
+    ring was full (a drop, counted). The arrays are ``table``'s (ROW_LAYOUT: the ring's rows and
+    header, the tick's work, the controller's ``out`` (offset, rate, damping, stiffness rows of
+    one tick), contact codes and masses, the desired position and orientation; then headers).
 
-    ``results`` is the controller's ``out`` (offset, rate, damping, stiffness rows of one tick);
-    the timing fields come as plain ints (a numpy store from Python costs microseconds).
+    The timing fields come as plain ints (a numpy store from Python costs microseconds); the
+    row's ``queue_drops`` are the drops counted in the table's headers (the ring's own among
+    them) plus ``other_drops``.
     """
+    rows, header = view1(table, 0, TICK_DTYPE), view1(table, 1, np.int64)
+    work, results = view1(table, 2, np.float64), view3(table, 3, np.float64)
+    contact, mass = view2(table, 4, np.int8), view1(table, 5, np.float64)
+    position_d, orientation_d = view1(table, 6, np.float64), view1(table, 7, np.float64)
+    queue_drops = other_drops
+    for i in range(DROPS_FROM, table.shape[0]):
+        queue_drops += view1(table, i, np.int64)[DROPPED_AT]
     slot = reserve_slot(header, rows.shape[0])
     if slot < 0:
         return False
@@ -87,52 +101,3 @@ def put_tick_row(
         row.commanded_q[j] = work[W_Q_CMD + j]
     publish(header, 1)
     return True
-
-
-# (dtype, dimensions) of row_entry's arrays; then the headers whose drops the row adds up
-ROW_LAYOUT: Layout = (
-    (TICK_DTYPE, 1),  # the ring's rows
-    (np.int64, 1),  # its header
-    (np.float64, 1),  # the tick's work
-    (np.float64, 3),  # the controller's out
-    (np.int8, 2),  # its contact codes
-    *((np.float64, 1),) * 3,  # its masses, the desired position and orientation
-)
-DROPS_FROM = len(ROW_LAYOUT)  # the table's first header whose drops count
-
-
-@njit(cache=True)
-def row_entry(
-    table: NDArray[np.int64],
-    t_ns: int,
-    tick: int,
-    period_ns: int,
-    compute_ns: int,
-    lateness_ns: int,
-    overruns: int,
-    other_drops: int,
-) -> bool:
-    """:func:`put_tick_row` on the arrays of ``table`` (ROW_LAYOUT, then headers): the row's
-    ``queue_drops`` are the drops counted in those headers (the ring's own among them) plus
-    ``other_drops``."""
-    queue_drops = other_drops
-    for i in range(DROPS_FROM, table.shape[0]):
-        queue_drops += view1(table, i, np.int64)[DROPPED_AT]
-    f8 = np.float64
-    return put_tick_row(
-        view1(table, 0, TICK_DTYPE),
-        view1(table, 1, np.int64),
-        view1(table, 2, f8),
-        view3(table, 3, f8),
-        view2(table, 4, np.int8),
-        view1(table, 5, f8),
-        view1(table, 6, f8),
-        view1(table, 7, f8),
-        t_ns,
-        tick,
-        period_ns,
-        compute_ns,
-        lateness_ns,
-        overruns,
-        queue_drops,
-    )

@@ -55,7 +55,7 @@ def test_no_kernel_is_loaded_once_the_devices_talk(tmp_path: Path) -> None:
     loaded = json.loads(done.stdout.splitlines()[-1])
     kernels = {  # the tick's, the trajectory's, the drivers', the rings', the histograms'
         "hilrig.tick.step_kernel.tick_entry",  # the tick's and its row's, by address
-        "hilrig.tick.row.row_entry",
+        "hilrig.tick.row.put_tick_row",
         "hilrig.tick.loop_step.loop_entry",
         "hilrig.ring_kernels.put_rows",
         "hilrig.rig.rings.put_first_rows",
