@@ -38,15 +38,7 @@ import numpy.typing as npt
 from hilrig.array_table import ArrayTable, Layout, view1, view2
 from hilrig.compiled import njit
 from hilrig.errors import RecordingError
-from hilrig.ring_kernels import (
-    DROPPED_AT,
-    READ_AT,
-    READ_SEEN_AT,
-    WRITE_AT,
-    publish,
-    put_rows,
-    reserve_slot,
-)
+from hilrig.ring_kernels import DROPPED_AT, READ_AT, READ_SEEN_AT, WRITE_AT, put_rows
 
 Rows = npt.NDArray[np.void]
 """Structured rows of a ring's dtype; a 0-d array of it is one writable row (a slot)."""
@@ -306,17 +298,10 @@ _PUT_FIRST: Layout = ((np.uint8, 2), (np.int64, 1), (np.uint8, 2))  # slots, hea
 
 @njit(cache=True)
 def put_first_rows(table: npt.NDArray[np.int64], count: int) -> int:
-    """The first ``count`` source rows stored and published as :func:`put_rows` does, the rows
-    as bytes (_PUT_FIRST: the ring's slots, its header, the source rows)."""
-    slots, header = view2(table, 0, np.uint8), view1(table, 1, np.int64)
-    source = view2(table, 2, np.uint8)
-    stored = 0
-    for i in range(count):
-        slot = reserve_slot(header, slots.shape[0])
-        if slot >= 0:
-            slots[slot, :] = source[i, :]
-            publish(header, 1)
-            stored += 1
+    """:func:`~hilrig.ring_kernels.put_rows` of the first ``count`` source rows, as bytes
+    (_PUT_FIRST: the ring's slots, its header, the source rows)."""
+    source = view2(table, 2, np.uint8)[:count]
+    stored: int = put_rows(view2(table, 0, np.uint8), view1(table, 1, np.int64), source)
     return stored
 
 
