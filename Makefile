@@ -24,9 +24,13 @@ demo: $(STAMP)  ## the main job: the paper table, then its collisions recorded o
 test: lint typecheck $(CHROMIUM)  ## lint, type-check and run every test
 	$(BIN)/python -m pytest -n $(TEST_WORKERS)
 
+# One install at a time: two `make test` started together on a fresh machine would otherwise race
+# for dpkg's lock (flock serialises them, the second finds chromium there); apt also waits for
+# any other apt (DPkg::Lock::Timeout).
 $(CHROMIUM):
-	$(SUDO) apt-get update -qq
-	$(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium
+	$(SUDO) flock /var/lock/hilrig-chromium.lock sh -c 'test -x $(CHROMIUM) || { \
+	  apt-get -o DPkg::Lock::Timeout=600 update -qq && \
+	  DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -qq chromium; }'
 
 lint: $(STAMP)
 	$(BIN)/ruff check hilrig tests benchmarks
