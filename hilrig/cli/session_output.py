@@ -148,7 +148,7 @@ class SessionWatch:
 
 def status_line(loop: ControlLoop, started_ns: int) -> str:
     """One line: time, tick rate, lateness, force, offset, contact, hold reason, drops."""
-    s = loop.status
+    s = loop.status()
     elapsed = max((time.monotonic_ns() - started_ns) / 1e9, 1e-9)
     line = (
         f"{elapsed:6.1f} s  {s.ticks / elapsed:6.0f} Hz  late {s.lateness_us:5.0f} us  "

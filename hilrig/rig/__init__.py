@@ -6,7 +6,7 @@ The public API (names load on first use, so that ``import hilrig.rig`` stays lig
     record_session(SessionConfig(...), live=...) -> SessionResult   # one recorded session
     RecorderFeed / RecorderProcess          # loop rows -> shared-memory rings -> MCAP
     LiveViewPort, LiveReportLike            # what a session needs of a live view
-    ControlLoop, LoopConfig                 # the loop itself
+    ControlLoop, LoopConfig, Watchdog       # the loop itself
     RigProcess                              # the emulated rig in its own process
     ChildProcess                            # spawn + Ctrl-C mask + report Pipe + join/kill
     AXIS_NAMES, FT_DTYPE, JOINT_DTYPE, TICK_DTYPE   # the rows the loop hands the recorder
@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from hilrig.rig.child import START_METHOD, ChildProcess
     from hilrig.rig.kinds import RigKind
     from hilrig.rig.live_port import LiveReportLike, LiveViewPort
-    from hilrig.rig.loop import ControlLoop, LoopConfig
+    from hilrig.rig.loop import ControlLoop, LoopConfig, Watchdog
     from hilrig.rig.loop_figures import LoopStatus, LoopSummary
     from hilrig.rig.recorder_feed import RecorderFeed
     from hilrig.rig.recorder_process import RecorderProcess, RecorderSummary
@@ -37,7 +37,7 @@ _MODULES = {
     "child": ("START_METHOD", "ChildProcess"),
     "kinds": ("RigKind",),
     "live_port": ("LiveReportLike", "LiveViewPort"),
-    "loop": ("ControlLoop", "LoopConfig"),
+    "loop": ("ControlLoop", "LoopConfig", "Watchdog"),
     "loop_figures": ("LoopStatus", "LoopSummary"),
     "recorder_feed": ("RecorderFeed",),
     "recorder_process": ("RecorderProcess", "RecorderSummary"),
@@ -80,6 +80,7 @@ __all__ = [
     "ViewCounts",
     "ViewForwarder",
     "VirtualInput",
+    "Watchdog",
     "record_session",
 ]
 

@@ -81,6 +81,13 @@ class ChildProcess:
         """The child's exit code (negative: the signal that ended it); None while it runs."""
         return None if self._process is None else self._process.exitcode
 
+    @property
+    def sentinel(self) -> int:
+        """A file descriptor readable once the child has ended (its process's sentinel)."""
+        if self._process is None:
+            raise self.error(f"{self.label}: not started")
+        return self._process.sentinel
+
     def alive(self) -> bool:
         """The child runs: one ``waitpid(WNOHANG)`` system call, no I/O."""
         return self._process is not None and self._process.is_alive()

@@ -32,6 +32,8 @@ class DeviceIO:
     targets: JointTargetsWriter
     feed: RecorderFeed | None = None
     samples_read: int = 0  # wrist samples and joint states read so far
+    watch_fd: int = -1  # a file the wait watches beside the sensor (-1: none) ...
+    watched: bool = False  # ... and whether the last wait found it readable
 
     def __post_init__(self) -> None:
         if self.feed is not None:  # a poll's rows: the first of its driver's rows
@@ -39,13 +41,19 @@ class DeviceIO:
             self.feed.ft.feed_from(self.sensor.rows)
 
     def wait(self, deadline_ns: int) -> int:
-        """Sleep until the wrist sensor has data or ``deadline_ns`` (monotonic); returns the
-        time now. Only the sensor wakes the loop: the joint state of its period arrives before
-        it, and Modbus replies are taken at the next tick, so one wake-up serves a period."""
+        """Sleep until the wrist sensor has data, ``watch_fd`` is readable (then ``watched``)
+        or ``deadline_ns`` (monotonic); returns the time now. Only the sensor wakes the loop
+        for data: the joint state of its period arrives before it, and Modbus replies are taken
+        at the next tick, so one wake-up serves a period."""
+        self.watched = False
         timeout_ns = deadline_ns - time.monotonic_ns()
         if timeout_ns > 0:
-            fd = self.sensor.fileno()
-            select.select([fd] if fd >= 0 else [], [], [], timeout_ns / 1e9)
+            fd, watch = self.sensor.fileno(), self.watch_fd
+            fds = [fd] if fd >= 0 else []
+            if watch >= 0:
+                fds.append(watch)
+            ready = select.select(fds, [], [], timeout_ns / 1e9)[0]
+            self.watched = watch >= 0 and watch in ready
         return time.monotonic_ns()
 
     def pump_until(

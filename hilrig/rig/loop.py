@@ -50,7 +50,7 @@ from hilrig.control import (
 from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.drivers.joint_targets.wire import Mode
 from hilrig.errors import HilrigError
-from hilrig.recording.samples import EventRecord
+from hilrig.recording.samples import ContactState, EventRecord
 from hilrig.rig.device_io import DeviceIO
 from hilrig.rig.events import EventDetector
 from hilrig.rig.loop_figures import LoopStatus, LoopSummary
@@ -74,11 +74,19 @@ from hilrig.tick.trajectory_kernel import desired_writer
 from hilrig.timing import realtime_python
 
 COMMAND_FAULT_HOLD_NS = 50_000_000  # after a failed joint-target write, hold this long
-WATCHDOG_TICKS = 100  # how often the session's watchdog (e.g. a living recorder) is asked
 GRID_WINDOW = 1000  # ticks over which the nominal grid follows a slow sensor clock
 # A frame this late past its period is asked for: a read hands over what the tty's worker holds
 NUDGE_NS = 200_000
-STATUS_EVERY = 10  # ticks between updates of the status line's values
+
+
+@dataclass(frozen=True)
+class Watchdog:
+    """What ends a session early: ``reason()`` names why ("" for nothing). It is asked only
+    when ``fd`` is readable, which the loop's wait watches beside the sensor (e.g. a child
+    process's sentinel, readable once the process has ended), so no tick pays for asking."""
+
+    fd: int
+    reason: Callable[[], str]
 
 
 @dataclass(frozen=True)
@@ -136,10 +144,12 @@ class ControlLoop:
         model: RobotModel,
         on_event: Callable[[EventRecord], None] | None = None,
         virtual: VirtualInput | None = None,
-        watchdog: Callable[[], str] | None = None,
+        watchdog: Watchdog | None = None,
     ) -> None:
         self.config = config
         self._watchdog = watchdog
+        if watchdog is not None:
+            io.watch_fd = watchdog.fd
         self._io = io
         self._sensor = io.sensor
         self._robot = io.robot
@@ -163,8 +173,8 @@ class ControlLoop:
         self._kernel = CompiledTick.build(
             self._controller, model, safety, compensator, q0, 1.0 / config.rate_hz, measured
         )
-        self.status = LoopStatus()
         self.summary = LoopSummary()
+        self.holding = ""  # why the robot holds ("" if it tracks), set by every tick
         self._period_ns = config.period_ns
         self._stale_ns = config.stale_after_ticks * config.period_ns
         self._words = loop_words(self._stale_ns)  # the loop's settings and last states, compiled
@@ -194,8 +204,8 @@ class ControlLoop:
     # -- the loop -----------------------------------------------------------------------------
 
     def run(self, duration_s: float | None, stop: threading.Event) -> LoopSummary:
-        """Tick until ``duration_s`` has passed, ``stop`` is set or the watchdog (asked every
-        WATCHDOG_TICKS ticks) names a reason to end; returns the summary. The robot is left
+        """Tick until ``duration_s`` has passed, ``stop`` is set or the watchdog (asked when
+        its fd is readable) names a reason to end; returns the summary. The robot is left
         holding."""
         feed = self._feed
         if feed is not None:  # bound to the ring's rows while running, released after
@@ -205,7 +215,6 @@ class ControlLoop:
         finally:
             self._put_row = None
         self._targets.write(self._q_cmd, Mode.HOLD)
-        self._update_status(self._last_start_ns, self._last_nominal_ns)
         return self.summary
 
     def _ticks(self, duration_s: float | None, stop: threading.Event) -> None:
@@ -249,8 +258,8 @@ class ControlLoop:
                     summary.fallback_ticks += 1
                 ticking = time.monotonic_ns()
                 self.tick(now, nominal)
-                if self._watchdog is not None and summary.ticks % WATCHDOG_TICKS == 0:
-                    reason = self._watchdog()
+                if self._io.watched and self._watchdog is not None:
+                    reason = self._watchdog.reason()
                     if reason:  # e.g. the recorder died: nothing would be recorded any more
                         self.ended_by = reason
                         self._events.fault("session", f"{reason}: robot held, session ended", now)
@@ -290,13 +299,13 @@ class ControlLoop:
         self._track_latency()
         if result & HELD:
             self.summary.hold_ticks += 1
-            self.status.holding = (
+            self.holding = (
                 "stopped"
                 if result & IS_STOPPED
                 else ("command fault" if result & FRESH else "stale input")
             )
         else:
-            self.status.holding = ""
+            self.holding = ""
         self._log_tick(start_ns, nominal_ns)
 
     def _report(self, result: int, t_ns: int) -> None:
@@ -360,16 +369,21 @@ class ControlLoop:
             )
         self._last_start_ns = start_ns
         self._last_nominal_ns = nominal_ns
-        if summary.ticks % STATUS_EVERY == 0:
-            self._update_status(start_ns, nominal_ns)
 
-    def _update_status(self, start_ns: int, nominal_ns: int) -> None:
-        """The status line's values (read by another thread: plain values)."""
-        status = self.status
-        status.ticks = self.summary.ticks
-        status.lateness_us = (start_ns - nominal_ns) / 1000
+    def status(self) -> LoopStatus:
+        """The status line's values now, read from the loop's own figures and arrays: for
+        another thread at a display's rate, so that the tick does no work for it (a value may
+        be a tick newer than another)."""
         force, offset = self._kernel.force, self._controller.offset
-        status.force_n = math.hypot(force[0], force[1], force[2])
-        status.offset_mm = 1000 * math.hypot(offset[0], offset[1], offset[2])
-        status.drops = 0 if self._feed is None else self._feed.drops
-        status.stopped = self._kernel.stopped
+        groups = [ContactState(code) for code in self._controller.contact]
+        engaged = [state for state in groups if state != ContactState.FREE]
+        return LoopStatus(
+            ticks=self.summary.ticks,
+            lateness_us=(self._last_start_ns - self._last_nominal_ns) / 1000,
+            force_n=math.hypot(force[0], force[1], force[2]),
+            offset_mm=1000 * math.hypot(offset[0], offset[1], offset[2]),
+            contact=(engaged or groups)[0].name.lower(),
+            holding=self.holding,
+            drops=0 if self._feed is None else self._feed.drops,
+            stopped=self._kernel.stopped,
+        )

@@ -1,8 +1,8 @@
 """What the loop reports: the status line's values while it runs, and its end-of-run figures.
 
-:class:`LoopStatus` is written by the loop every few ticks and read by the status line's thread
-(plain values); :class:`LoopSummary` counts ticks and holds the latency histograms, and becomes
-the recording's ``outcome`` record (:meth:`LoopSummary.outcome`).
+:class:`LoopStatus` is a snapshot another thread takes for the status line
+(:meth:`hilrig.rig.ControlLoop.status`); :class:`LoopSummary` counts ticks and holds the latency
+histograms, and becomes the recording's ``outcome`` record (:meth:`LoopSummary.outcome`).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from hilrig.timing import LatencyHistogram, add_duration
 
 @dataclass
 class LoopStatus:
-    """What the status line shows; written by the loop, read by anyone (plain values)."""
+    """What the status line shows, taken from a running loop (``ControlLoop.status()``)."""
 
     ticks: int = 0
     lateness_us: float = 0.0

@@ -134,9 +134,13 @@ class RecorderProcess:
             raise RecordingError(f"recorder of {self.path}: not ready within {timeout_s:g} s")
 
     def alive(self) -> bool:
-        """The recorder process runs. Cheap enough for the loop every 100 ms: one
-        ``waitpid(WNOHANG)`` system call, no I/O, no allocation worth counting."""
+        """The recorder process runs: one ``waitpid(WNOHANG)`` system call, no I/O."""
         return self._child.alive()
+
+    @property
+    def sentinel(self) -> int:
+        """A file descriptor that becomes readable when the recorder process ends."""
+        return self._child.sentinel
 
     def stop(
         self, *, outcome: SessionOutcome | None = None, timeout_s: float = 10.0

@@ -45,7 +45,7 @@ from hilrig.recording.samples import EventRecord
 from hilrig.rig.device_io import DeviceIO
 from hilrig.rig.kinds import RigKind
 from hilrig.rig.live_port import LiveReportLike, LiveViewPort
-from hilrig.rig.loop import ControlLoop
+from hilrig.rig.loop import ControlLoop, Watchdog
 from hilrig.rig.loop_figures import LoopSummary
 from hilrig.rig.machine_lock import one_session_at_a_time
 from hilrig.rig.recorder_feed import RecorderFeed
@@ -178,7 +178,9 @@ def record_session(
             model=model,
             on_event=collect,
             virtual=config.virtual,
-            watchdog=lambda: "" if recorder.alive() else "the recorder process died",
+            watchdog=Watchdog(
+                recorder.sentinel, lambda: "" if recorder.alive() else "the recorder process died"
+            ),
         )
         recorder.begin(
             SessionInfo.starting_now(

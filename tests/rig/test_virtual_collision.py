@@ -1,5 +1,6 @@
 """A recorded trace played into the live loop as a virtual collision (HIL replay)."""
 
+import math
 import threading
 from pathlib import Path
 
@@ -8,9 +9,9 @@ import pytest
 
 from hilrig.errors import HilrigError
 from hilrig.recording import load
-from hilrig.recording.samples import EventKind
+from hilrig.recording.samples import ContactState, EventKind
 from hilrig.replay import verify
-from hilrig.rig import SessionConfig, VirtualInput, record_session
+from hilrig.rig import ControlLoop, LoopStatus, SessionConfig, VirtualInput, record_session
 
 
 def test_rows_play_at_their_times_and_only_then() -> None:
@@ -39,6 +40,16 @@ def test_from_columns_cuts_and_maps_axes() -> None:
 def test_a_virtual_collision_makes_the_robot_yield_and_replays_exactly(tmp_path: Path) -> None:
     push = np.zeros((1000, 9))
     push[:, 1] = 4.0 * np.sin(np.linspace(0.0, np.pi, 1000))  # a 1 s, 4 N push along +y
+    seen: list[LoopStatus] = []  # the status line's snapshots, taken as a status thread does
+
+    def watch(loop: ControlLoop) -> None:
+        def take() -> None:
+            while not done.wait(0.02):
+                seen.append(loop.status())
+
+        threading.Thread(target=take, daemon=True).start()
+
+    done = threading.Event()
     result = record_session(
         SessionConfig(
             out=tmp_path / "virtual.mcap",
@@ -49,7 +60,9 @@ def test_a_virtual_collision_makes_the_robot_yield_and_replays_exactly(tmp_path:
             virtual=VirtualInput(push, dt_s=0.001, delay_s=0.5),
         ),
         stop=threading.Event(),
+        on_start=watch,
     )
+    done.set()
     marks = [e.detail for e in result.events if e.kind == EventKind.OPERATOR_MARK]
     assert "playback started" in marks and "playback ended" in marks
     state = load(result.path, topics=["/controller/state"])["/controller/state"]
@@ -63,3 +76,22 @@ def test_a_virtual_collision_makes_the_robot_yield_and_replays_exactly(tmp_path:
     assert offset.max() > 0.002 and offset.max() > -offset.min()
     report = verify(result.path)  # the recorded inputs through the recorded controller
     assert report.ok, report.worst.describe()
+    _check_status(seen, result.path)
+
+
+def _check_status(seen: list[LoopStatus], path: Path) -> None:
+    """Each snapshot shows its tick's recorded force and contact state, or the next tick's (it
+    is taken while the loop runs), and the collision's contact was shown."""
+    frames = load(path, topics=["/controller/state", "/diagnostics/loop"])
+    state = frames["/controller/state"].set_index(frames["/diagnostics/loop"]["tick"].to_numpy())
+    names = {code.value: code.name.lower() for code in ContactState}
+    shown = [s for s in seen if 0 < s.ticks < state.index[-1]]
+    assert len(shown) > 50
+    for status in shown:
+        rows = state.loc[[status.ticks, status.ticks + 1]]
+        forces = [math.hypot(*row) for row in rows[["force_0", "force_1", "force_2"]].to_numpy()]
+        assert any(math.isclose(status.force_n, f, abs_tol=1e-9) for f in forces), status
+        codes = rows[[f"contact_state_{axis}" for axis in range(9)]].to_numpy()
+        engaged = [next((c for c in tick if c), 0) for tick in codes]  # the first group not free
+        assert status.contact in {names[code] for code in engaged}, status
+    assert "contact" in {s.contact for s in shown}
