@@ -1,7 +1,8 @@
 """The machine's own timing floor: what no 1 kHz loop on it can beat, measured without hilrig.
 
-The machine's settings that cost deadlines (those ``hilrig doctor`` warns of, counted; every
-setting in the detail), then calibration figures, read beside the session suite's (a loop
+After a wait for a quiet machine (:mod:`benchmarks.settle`, reported), the machine's settings
+that cost deadlines (those ``hilrig doctor`` warns of, counted; every setting in the detail),
+then calibration figures, read beside the session suite's (a loop
 cannot be more punctual than the thread it runs on, nor than the link its samples come
 through):
 
@@ -36,6 +37,7 @@ from dataclasses import asdict
 import numpy as np
 
 from benchmarks.harness import Result, quantiles_us
+from benchmarks.settle import settle
 from hilrig.machine import read_settings
 from hilrig.machine.floor import PERIOD_NS, Steal, WakeUps, delivery, pty_delivery, wake_ups
 
@@ -46,6 +48,7 @@ LINK_S = 10.0
 
 
 def run() -> list[Result]:
+    settled = settle("machine")
     steal = Steal()
     idle = wake_ups(WAKE_S)
     busy_core = subprocess.Popen([sys.executable, "-c", "while True: pass"])
@@ -60,6 +63,7 @@ def run() -> list[Result]:
     links += _delivery_rows("socket pair", delivery(pair[0].detach(), pair[1].detach(), LINK_S))
     stolen = Result("machine", "hypervisor steal over the suite", steal.percent(), "% of CPU time")
     return [
+        settled,
         _settings_row(),
         *_wake_rows(idle, ""),
         *_wake_rows(busy, " (a busy process on one core)"),
