@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks.harness import Result, quantiles_us
+from benchmarks.settle import settle
 from hilrig.drivers import FramerConfig, FtSerial, GravityCompensator, KunweiFramer, ToolLoad
 from hilrig.drivers.ft.frames import FtFrames
 from hilrig.drivers.ft.wire import encode_frame
@@ -310,6 +311,12 @@ def bench_ik() -> list[Result]:
 
 
 def run() -> list[Result]:
-    return (
-        bench_stream() + bench_decoders() + bench_polled_calls() + bench_compensation() + bench_ik()
-    )
+    settled = settle("drivers")  # the stream's rate and latency, on a quiet machine
+    return [
+        settled,
+        *bench_stream(),
+        *bench_decoders(),
+        *bench_polled_calls(),
+        *bench_compensation(),
+        *bench_ik(),
+    ]

@@ -21,6 +21,7 @@ from collections import deque
 from pathlib import Path
 
 from benchmarks.harness import Result, quantiles_us
+from benchmarks.settle import settle
 from hilrig.emulator.probe import RigProbe
 from hilrig.emulator.rig import HOME_Q_RAD
 from hilrig.rig.rig_process import RigProcess
@@ -39,12 +40,13 @@ def cpu_s(pid: int) -> float:
 
 
 def run() -> list[Result]:
+    settled = settle("rig")
     rig = RigProcess("paper-end-effector")
     endpoints = rig.start()
     try:
         assert rig.pid is not None
         with RigProbe(endpoints) as probe:
-            return measure(rig, rig.pid, probe) + measure_sync(rig.pid, probe)
+            return [settled, *measure(rig, rig.pid, probe), *measure_sync(rig.pid, probe)]
     finally:
         rig.stop()
 
