@@ -35,7 +35,7 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 
 from benchmarks.harness import Result
@@ -244,8 +244,7 @@ def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[
         row("emulated rig CPU", measured.rig_cpu_pct, "% of a core", "<= 25",
             measured.rig_cpu_pct <= 25),
         row("hypervisor steal over the session", measured.steal_pct, "% of CPU time"),
-        Result("session", f"{measured.settled.name}{variant}", measured.settled.value,
-               measured.settled.unit, detail=measured.settled.detail),
+        replace(measured.settled, name=measured.settled.name + variant),
     ]  # fmt: skip
 
 
