@@ -103,6 +103,7 @@ class Ring:
         self._read = self._words[READ_AT]  # consumer's copy of its own index
         self._reserved = False
         self._closed = False
+        self._words_at_close: tuple[int, ...] = ()  # what the counters read once closed
         self._put_first: Callable[[int], int] = _not_fed
 
     @classmethod
@@ -249,17 +250,25 @@ class Ring:
     @property
     def pushed(self) -> int:
         """Rows committed since creation (the write index)."""
-        return int(self._words[WRITE_AT])
+        return self._word(WRITE_AT)
 
     @property
     def dropped(self) -> int:
         """Rows refused because the ring was full, since creation."""
-        return int(self._words[DROPPED_AT])
+        return self._word(DROPPED_AT)
 
     @property
     def backlog(self) -> int:
         """Rows committed but not yet read by the consumer."""
-        return int(self._words[WRITE_AT] - self._words[READ_AT])
+        return self._word(WRITE_AT) - self._word(READ_AT)
+
+    def _word(self, at: int) -> int:
+        """A header word; once closed (also by another thread meanwhile: a status line read
+        as the session ends), its value at the close."""
+        try:
+            return int(self._words[at])
+        except ValueError:  # the header's view is released
+            return self._words_at_close[at]
 
     def close(self) -> None:
         """Unmap the block in this process; call again once the views are gone if it raised.
@@ -272,6 +281,7 @@ class Ring:
             self._slots = ()
             self._put_first = _not_fed  # it holds views of the block
             del self._data, self.header
+            self._words_at_close = tuple(self._words)
             self._words.release()
         try:
             self._shm.close()

@@ -162,6 +162,16 @@ def test_close_refuses_while_a_slot_is_referenced_then_succeeds() -> None:
     ring.close()
 
 
+def test_a_closed_ring_s_counters_read_as_they_were_at_its_close() -> None:
+    ring = Ring.create(RingSpec.unique("test", ROW, 2))
+    ring.unlink()
+    for i in range(5):
+        ring.push(i, value_of(i))
+    before = (ring.pushed, ring.dropped, ring.backlog)
+    ring.close()
+    assert (ring.pushed, ring.dropped, ring.backlog) == before == (2, 3, 2)
+
+
 def test_only_the_creator_unlinks(ring: Ring) -> None:
     consumer = Ring.attach(ring.spec)
     with pytest.raises(RecordingError, match="only its creator"):

@@ -2,6 +2,7 @@
 
 import math
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -42,13 +43,20 @@ def test_a_virtual_collision_makes_the_robot_yield_and_replays_exactly(tmp_path:
     push[:, 1] = 4.0 * np.sin(np.linspace(0.0, np.pi, 1000))  # a 1 s, 4 N push along +y
     seen: list[LoopStatus] = []  # the status line's snapshots, taken as a status thread does
 
+    failed: list[BaseException] = []  # a status read that raised, also as the session ends
+
     def watch(loop: ControlLoop) -> None:
         def take() -> None:
-            while not done.wait(0.02):
-                seen.append(loop.status())
+            try:
+                while not done.wait(0.02):
+                    seen.append(loop.status())
+            except BaseException as err:
+                failed.append(err)
 
-        threading.Thread(target=take, daemon=True).start()
+        taker.append(threading.Thread(target=take, daemon=True))
+        taker[0].start()
 
+    taker: list[threading.Thread] = []
     done = threading.Event()
     result = record_session(
         SessionConfig(
@@ -62,7 +70,10 @@ def test_a_virtual_collision_makes_the_robot_yield_and_replays_exactly(tmp_path:
         stop=threading.Event(),
         on_start=watch,
     )
+    time.sleep(0.1)  # snapshots taken after the session's end (its rings closed) too
     done.set()
+    taker[0].join()
+    assert not failed, failed
     marks = [e.detail for e in result.events if e.kind == EventKind.OPERATOR_MARK]
     assert "playback started" in marks and "playback ended" in marks
     state = load(result.path, topics=["/controller/state"])["/controller/state"]
