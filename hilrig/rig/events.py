@@ -61,8 +61,7 @@ class EventDetector:
             return
         self._clamp = flags
         if flags:
-            detail = f"clamp engaged: {clamp_names(flags)}{CLAMPED}"
-            self._emit(EventRecord(t_ns, EventKind.FAULT, "safety", detail))
+            self._emit(EventRecord(t_ns, EventKind.FAULT, "safety", CLAMP_DETAILS[flags]))
 
     def fault(self, source: str, detail: str, t_ns: int, *, value: float = float("nan")) -> None:
         """Any other fault, emitted as given."""
@@ -86,3 +85,9 @@ CLAMP_WORDS = {
     Clamp.NON_FINITE: "non-finite target",
     Clamp.HOLDING: "controlled stop",
 }
+
+#: Each combination of the clamp's flags, as the detail of its event (made once: on the tick,
+#: naming the flags took about 13 us)
+CLAMP_DETAILS = tuple(
+    f"clamp engaged: {clamp_names(flags)}{CLAMPED}" for flags in range(2 ** len(Clamp))
+)

@@ -365,7 +365,6 @@ class ControlLoop:
                 time.monotonic_ns() - start_ns,
                 start_ns - nominal_ns,
                 summary.missed_deadlines,
-                feed.event_drops,
             )
         self._last_start_ns = start_ns
         self._last_nominal_ns = nominal_ns

@@ -1,12 +1,12 @@
 """The recorder process: every ``poll_s`` it copies out what the rings hold, turns the rows
 into samples (:mod:`.row_messages`) and writes them with :class:`~hilrig.recording.SessionWriter`;
-with a live view it also forwards a decimated copy (:class:`~.view_feed.ViewForwarder`)."""
+with a live view it also forwards a decimated copy (:class:`~.view_feed.ViewForwarder`). Between
+polls it waits on its pipe to the parent, which says when to stop and with what outcome."""
 
 from __future__ import annotations
 
 import contextlib
 import os
-import queue
 import signal
 import time
 from collections.abc import Mapping
@@ -19,7 +19,6 @@ from types import FrameType
 from hilrig.errors import HilrigError
 from hilrig.recording import (
     Attachment,
-    EventRecord,
     SessionInfo,
     SessionOutcome,
     SessionWriter,
@@ -29,7 +28,7 @@ from hilrig.recording import (
 from hilrig.rig.child import report
 from hilrig.rig.recorder_feed import release_rings
 from hilrig.rig.rings import Ring, RingSpec
-from hilrig.rig.row_messages import EVENTS_TOPIC, ft_samples, joint_samples, tick_samples
+from hilrig.rig.row_messages import event_samples, ft_samples, joint_samples, tick_samples
 from hilrig.rig.view_feed import VIEW_BATCH_S, VIEW_HANDOFF_S, ViewBatch, ViewForwarder
 from hilrig.timing import freeze_heap
 
@@ -39,8 +38,8 @@ from hilrig.timing import freeze_heap
 #: not keep the kernel's workers (the tty's, which hand the loop its F/T frames) waiting.
 RECORDER_NICENESS = -10
 IDLE_FLUSH_S = 0.25  # hand a quiet writer's open chunk to the OS after this long without data
-STOP = None  # the last item RecorderProcess.stop() puts on the event queue (after the outcome)
 BEGIN = "begin"  # RecorderProcess.begin() sends (BEGIN, session, calibration)
+STOP = "stop"  # RecorderProcess.stop() sends (STOP, outcome or None)
 
 
 @dataclass(frozen=True)
@@ -48,8 +47,7 @@ class RecorderJob:
     """What the recorder process needs from the start, pickled into it when it is spawned."""
 
     path: Path
-    rings: tuple[RingSpec, RingSpec, RingSpec]  # ft, joint, tick
-    events: Queue[EventRecord | SessionOutcome | None]
+    rings: tuple[RingSpec, RingSpec, RingSpec, RingSpec]  # ft, joint, tick, events
     parent_pid: int
     controller: str
     axis_names: tuple[str, ...]
@@ -90,7 +88,7 @@ def record(conn: Connection, job: RecorderJob) -> None:
         release_rings(rings)
         report(conn, "error", str(err))
         return
-    recorder = _Recorder(job, writer, rings)
+    recorder = _Recorder(job, conn, writer, rings)
     signal.signal(signal.SIGTERM, recorder.on_sigterm)
     freeze_heap()  # the collector's passes then walk only what the session makes
     report(conn, "ready")
@@ -122,11 +120,13 @@ def _begin(conn: Connection) -> tuple[SessionInfo, Mapping[str, object] | None] 
 
 
 class _Recorder:
-    """The recorder process's loop over the rings and the event queue."""
+    """The recorder process's loop over the rings."""
 
-    def __init__(self, job: RecorderJob, writer: SessionWriter, rings: list[Ring]) -> None:
-        self.job, self.writer = job, writer
-        self.ft, self.joint, self.tick = rings
+    def __init__(
+        self, job: RecorderJob, conn: Connection, writer: SessionWriter, rings: list[Ring]
+    ) -> None:
+        self.job, self.conn, self.writer = job, conn, writer
+        self.ft, self.joint, self.tick, self.events = rings
         self.terminated = False
         self.outcome: SessionOutcome | None = None  # the session's end figures, with the stop
         self.view = None
@@ -138,16 +138,17 @@ class _Recorder:
         self.terminated = True
 
     def run(self) -> int:
-        """Write what arrives every ``poll_s`` until the stop marker, SIGTERM or the parent's
-        death; returns the number of messages written."""
+        """Write what arrives every ``poll_s`` until the parent's stop, SIGTERM or the
+        parent's death; returns the number of messages written."""
         messages = 0
         last_data = time.monotonic()
         dirty = False  # the writer holds data since the last flush
         while True:
-            # Checked before the drain: a dead loop's last rows are then all in the rings.
+            # Checked before the rings are read: a dead loop's last rows are then all in them.
             finishing = self.terminated or os.getppid() != self.job.parent_pid
-            written, stopping = self.drain_events()
-            # Rows are read after the events: all rows committed before stop() are in the rings.
+            # Rings are read after the stop: all committed before stop() are in them by then.
+            stopping = self.stop_came()
+            written = self.write_events()
             for messages_of, ring, stream in (
                 (ft_samples, self.ft, "ft"),
                 (joint_samples, self.joint, "joints"),
@@ -171,22 +172,26 @@ class _Recorder:
             if stopping or finishing:
                 return messages
 
-    def drain_events(self) -> tuple[int, bool]:
-        """Write queued events, waiting up to ``poll_s`` for the first (the loop's sleep).
-        Returns how many were written and whether the stop marker came."""
-        events = self.job.events
+    def write_events(self) -> int:
+        """Write (and forward to the live view) the events in their ring; returns how many."""
         written = 0
+        for topic, record in event_samples(self.events.read_available()):
+            self.writer.write(topic, record)
+            if self.view is not None:
+                self.view.event(record)
+            written += 1
+        return written
+
+    def stop_came(self) -> bool:
+        """Wait up to ``poll_s`` (the loop's sleep) for the parent's stop, keeping its outcome.
+        True once it came, or once the parent is gone (EOF: finish the file)."""
         try:
-            item = events.get(timeout=self.job.poll_s)
-            while item is not STOP:
-                if isinstance(item, SessionOutcome):
-                    self.outcome = item
-                else:
-                    self.writer.write(EVENTS_TOPIC, item)
-                    written += 1
-                    if self.view is not None:
-                        self.view.event(item)
-                item = events.get_nowait()
-        except queue.Empty:
-            return written, False
-        return written, True
+            if not self.conn.poll(self.job.poll_s):
+                return False
+            message = self.conn.recv()
+        except (EOFError, OSError):
+            return True
+        if isinstance(message, tuple) and message[0] == STOP:
+            self.outcome = message[1]
+            return True
+        return False

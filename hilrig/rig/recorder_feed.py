@@ -1,26 +1,32 @@
-"""The loop's end of the recorder: shared-memory rings for the rows and a queue for events.
+"""The loop's end of the recorder: shared-memory rings for the rows and the events.
 
-:class:`RecorderFeed` lives in the loop process. It owns three rings (wrist F/T, joint state,
-tick rows; 2 s at 1 kHz each by default) and a bounded queue for events, the only variable-size
-records. Every call returns at once: a full ring or queue refuses the row or event and counts a
-drop (:attr:`RecorderFeed.drops`), so a stalled, killed or missing recorder costs data, never
-the tick.
+:class:`RecorderFeed` lives in the loop process. It owns four rings: wrist F/T, joint state and
+tick rows (2 s at 1 kHz each by default) and events (fixed-size rows, EVENT_DTYPE: no queue, no
+feeder thread, no pickling in the loop's process). Every call returns at once: a full ring
+refuses the row or event and counts a drop (:attr:`RecorderFeed.drops`), so a stalled, killed or
+missing recorder costs data, never the tick.
 """
 
 from __future__ import annotations
 
-import queue
 from collections.abc import Sequence
-from multiprocessing.queues import Queue
 from types import TracebackType
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hilrig.errors import RecordingError
-from hilrig.recording import EventRecord, SessionOutcome
-from hilrig.rig.child import CONTEXT
-from hilrig.rig.records import FT_DTYPE, JOINT_DTYPE, TICK_DTYPE
+from hilrig.recording import EventRecord
+from hilrig.rig.records import (
+    AXIS_BYTES,
+    DETAIL_BYTES,
+    EVENT_DTYPE,
+    FT_DTYPE,
+    JOINT_DTYPE,
+    SOURCE_BYTES,
+    TICK_DTYPE,
+    fitted,
+)
 from hilrig.rig.rings import Ring, RingSpec, Rows
 
 RING_ROWS = 2048  # per ring: 2 s at 1 kHz
@@ -28,27 +34,30 @@ EVENT_SLOTS = 1024
 
 
 class RecorderFeed:
-    """The loop's end of the recorder: rings for wrist F/T, joint-state and tick rows, a queue
-    for events. Nothing here blocks, and only :meth:`event` allocates.
+    """The loop's end of the recorder: rings for wrist F/T, joint-state and tick rows and for
+    events. Nothing here blocks, and only :meth:`event` allocates (its text's bytes).
 
     Per row: ``slot = feed.tick_slot()``; if it is not None fill its fields in place
     (``slot["force"] = f``, dtypes in :mod:`.records`); then ``feed.commit_tick()``, which does
     nothing when the slot was refused. The feed must be created before the recorder process and
-    closed after it stopped (:meth:`close` unlinks the rings). ``rows`` per ring bound what may
-    wait for a recorder that has not begun yet.
+    closed after it stopped (:meth:`close` unlinks the rings). ``rows`` per row ring and
+    ``events`` bound what may wait for a recorder that has not begun yet.
     """
 
     def __init__(self, *, rows: int = RING_ROWS, events: int = EVENT_SLOTS) -> None:
         created: list[Ring] = []
         try:
-            for label, dtype in (("ft", FT_DTYPE), ("joint", JOINT_DTYPE), ("tick", TICK_DTYPE)):
-                created.append(Ring.create(RingSpec.unique(label, dtype, rows)))
+            for label, dtype, capacity in (
+                ("ft", FT_DTYPE, rows),
+                ("joint", JOINT_DTYPE, rows),
+                ("tick", TICK_DTYPE, rows),
+                ("event", EVENT_DTYPE, events),
+            ):
+                created.append(Ring.create(RingSpec.unique(label, dtype, capacity)))
         except RecordingError:
             release_rings(created)
             raise
-        self.ft, self.joint, self.tick = created
-        self.events: Queue[EventRecord | SessionOutcome | None] = CONTEXT.Queue(events)
-        self.event_drops = 0
+        self.ft, self.joint, self.tick, self.events = created
 
     def ft_slot(self) -> Rows | None:
         """The next wrist F/T row (FT_DTYPE) to fill, or None if its ring is full (a drop)."""
@@ -75,19 +84,21 @@ class RecorderFeed:
         self.tick.commit()
 
     def event(self, record: EventRecord) -> bool:
-        """Queue ``record`` for ``/events``; False (and a drop) if the queue is full. The
-        queue's feeder thread pickles it; the first call starts that thread."""
-        try:
-            self.events.put_nowait(record)
-        except queue.Full:
-            self.event_drops += 1
-            return False
-        return True
+        """Put ``record`` for ``/events`` into its ring (texts cut to their fields, marked:
+        :func:`~.records.fitted`); False (and a drop) if the ring is full."""
+        return self.events.push(
+            record.t_ns,
+            record.value,
+            record.kind,
+            fitted(record.source, SOURCE_BYTES),
+            fitted(record.axis, AXIS_BYTES),
+            fitted(record.detail, DETAIL_BYTES),
+        )
 
     @property
-    def rings(self) -> tuple[Ring, Ring, Ring]:
-        """The F/T, joint-state and tick rings, in that order."""
-        return self.ft, self.joint, self.tick
+    def rings(self) -> tuple[Ring, Ring, Ring, Ring]:
+        """The F/T, joint-state, tick and event rings, in that order."""
+        return self.ft, self.joint, self.tick, self.events
 
     @property
     def headers(self) -> tuple[NDArray[np.int64], ...]:
@@ -96,15 +107,13 @@ class RecorderFeed:
 
     @property
     def drops(self) -> int:
-        """Rows and events refused so far (every ring's drops plus the event queue's)."""
-        return self.ft.dropped + self.joint.dropped + self.tick.dropped + self.event_drops
+        """Rows and events refused so far (every ring's drops)."""
+        return sum(ring.dropped for ring in self.rings)
 
     def close(self) -> None:
-        """Unlink and unmap the rings and close the event queue; events not yet taken by a
-        recorder are discarded. Raises RecordingError if a reserved slot is still referenced
-        (the rings' names are gone by then)."""
-        self.events.close()
-        self.events.cancel_join_thread()  # never wait at exit for a recorder that is gone
+        """Unlink and unmap the rings; what a recorder has not read by then is discarded.
+        Raises RecordingError if a reserved slot is still referenced (the rings' names are gone
+        by then)."""
         release_rings(self.rings)
 
     def __enter__(self) -> RecorderFeed:

@@ -12,16 +12,13 @@ and finishes its file cleanly on :meth:`~RecorderProcess.stop`, on SIGTERM, or w
 process dies. Only SIGKILL leaves a truncated file, missing at most the writer's open chunk
 (0.25 s): ``hilrig recover`` makes it whole.
 
-Shutdown order: stop the loop, then :meth:`RecorderProcess.stop` (every row committed and every
-event sent before it is recorded), then :meth:`RecorderFeed.close`.
+Shutdown order: stop the loop, then :meth:`RecorderProcess.stop` (every row and event committed
+before it is recorded), then :meth:`RecorderFeed.close`.
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
-import queue
-import time
 from collections.abc import Mapping, Sequence
 from multiprocessing.queues import Queue
 from pathlib import Path
@@ -74,8 +71,7 @@ class RecorderProcess:
         self._feed = feed
         self._job = RecorderJob(
             path=self.path,
-            rings=(feed.ft.spec, feed.joint.spec, feed.tick.spec),
-            events=feed.events,
+            rings=(feed.ft.spec, feed.joint.spec, feed.tick.spec, feed.events.spec),
             parent_pid=os.getpid(),
             controller=controller,
             axis_names=axis_names,
@@ -157,18 +153,9 @@ class RecorderProcess:
             return self._summary
         if not self._child.started:
             raise RecordingError(f"recorder of {self.path}: not started")
-        deadline = time.monotonic() + timeout_s
-        message = None
-        if self._begun:
-            # The marker follows every event sent before; a stalled recorder's full queue
-            # refuses it, and the join below then times out.
-            with contextlib.suppress(queue.Full):
-                if outcome is not None:
-                    self._feed.events.put(outcome, timeout=timeout_s)
-                self._feed.events.put(STOP, timeout=timeout_s)
-        else:
-            message = "stop"
-        if not self._child.stop(max(0.0, deadline - time.monotonic()), message=message):
+        # every row and event committed before is in the rings, which the recorder reads once
+        # more after this message
+        if not self._child.stop(timeout_s, message=(STOP, outcome)):
             raise RecordingError(
                 f"recorder of {self.path}: not finished within {timeout_s:g} s; killed it"
             )

@@ -8,12 +8,27 @@ Cartesian axes x, y, z (base frame, N and m) then joints 1..6 (N*m and rad).
 
 from __future__ import annotations
 
+import numpy as np
+
 from hilrig.drivers.ft.wire import SAMPLE_DTYPE
 from hilrig.drivers.robot_state.wire import STATE_DTYPE
 from hilrig.recording.schema import AXES, AXIS_NAMES, JOINT_NAMES
 from hilrig.tick.row import TICK_DTYPE
 
-__all__ = ["AXES", "AXIS_NAMES", "FT_DTYPE", "JOINTS", "JOINT_DTYPE", "JOINT_NAMES", "TICK_DTYPE"]
+__all__ = [
+    "AXES",
+    "AXIS_BYTES",
+    "AXIS_NAMES",
+    "DETAIL_BYTES",
+    "EVENT_DTYPE",
+    "FT_DTYPE",
+    "JOINTS",
+    "JOINT_DTYPE",
+    "JOINT_NAMES",
+    "SOURCE_BYTES",
+    "TICK_DTYPE",
+    "fitted",
+]
 
 JOINTS = len(JOINT_NAMES)
 
@@ -25,3 +40,28 @@ FT_DTYPE = SAMPLE_DTYPE
 # controller's clock and sequence, q rad, qd rad/s, tau N*m, status bits; the status is not
 # recorded)
 JOINT_DTYPE = STATE_DTYPE
+
+# One event (hilrig.recording.EventRecord): host time, value (NaN when none), kind code, then
+# source, axis and detail as UTF-8, each cut to its field (CUT marks a cut: see fitted)
+SOURCE_BYTES, AXIS_BYTES, DETAIL_BYTES = 48, 24, 448
+EVENT_DTYPE = np.dtype(
+    [
+        ("t_ns", "<i8"),
+        ("value", "<f8"),
+        ("kind", "u1"),
+        ("source", f"S{SOURCE_BYTES}"),
+        ("axis", f"S{AXIS_BYTES}"),
+        ("detail", f"S{DETAIL_BYTES}"),
+    ]
+)
+CUT = b" [cut]"
+
+
+def fitted(text: str, size: int) -> bytes:
+    """``text`` as UTF-8 in at most ``size`` bytes: whole, or cut at a character's end and
+    marked by CUT (an event's text is never cut silently)."""
+    data = text.encode()
+    if len(data) <= size:
+        return data
+    kept = data[: size - len(CUT)].decode(errors="ignore").encode()
+    return kept + CUT

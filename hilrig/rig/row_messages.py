@@ -8,6 +8,8 @@ from dataclasses import fields
 
 from hilrig.recording import (
     ControllerSample,
+    EventKind,
+    EventRecord,
     JointSample,
     LoopTiming,
     PoseSample,
@@ -76,3 +78,13 @@ def tick_samples(rows: Rows) -> Messages:
         yield DESIRED_TOPIC, PoseSample(t, (p[0], p[1], p[2]), (o[0], o[1], o[2], o[3]))
         yield COMMANDED_TOPIC, JointSample(t, q)
         yield LOOP_TOPIC, LoopTiming(t, **{name: values[k] for name, values in timing})
+
+
+def event_samples(rows: Rows) -> Iterator[tuple[str, EventRecord]]:
+    """``/events`` records of EVENT_DTYPE rows (their texts as the loop fitted them)."""
+    columns = ("t_ns", "kind", "source", "detail", "axis", "value")
+    for t_ns, kind, source, detail, axis, value in zip(
+        *(rows[c].tolist() for c in columns), strict=True
+    ):
+        text = (source.decode(), detail.decode(), axis.decode())
+        yield EVENTS_TOPIC, EventRecord(t_ns, EventKind(kind), *text, value=value)

@@ -58,7 +58,7 @@ def warm_up() -> None:
             ring.feed_from(np.zeros(1, dtype=ring.spec.dtype))
             ring.put_first(1)
         put_row = tick.row_writer(feed.tick.rows, feed.tick.header, feed.headers)
-        put_row(0, 0, 0, 0, 0, 0, 0)
+        put_row(0, 0, 0, 0, 0, 0)
         del put_row  # it holds the ring's rows, which must be released before unmapping
     finally:
         feed.close()

@@ -224,12 +224,12 @@ class CompiledTick:
         drops_from: tuple[NDArray[np.int64], ...],
     ) -> Callable[..., bool]:
         """Puts this tick's row into the ring of ``rows`` and ``header`` when called with the
-        row's six timing ints and the drops counted elsewhere (:func:`put_tick_row`, its arrays by
-        address; ``drops_from``: the headers whose drops the row's ``queue_drops`` adds up)."""
+        row's six timing ints (:func:`put_tick_row`, its arrays by address; ``drops_from``: the
+        headers whose drops the row's ``queue_drops`` adds up)."""
         k, i = self.arrays, self.inputs
         arrays = (rows, header, self.work, k.out, k.contact, k.mass, i.position_d, i.orientation_d)
         layout = ROW_LAYOUT + ((np.int64, 1),) * len(drops_from)
-        return ArrayTable((*arrays, *drops_from)).bind(put_tick_row, layout, last=(0,) * 7)
+        return ArrayTable((*arrays, *drops_from)).bind(put_tick_row, layout, last=(0,) * 6)
 
 
 __all__ = [

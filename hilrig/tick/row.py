@@ -51,7 +51,6 @@ def put_tick_row(
     compute_ns: int,
     lateness_ns: int,
     overruns: int,
-    other_drops: int,
 ) -> bool:
     """The tick's row (TICK_DTYPE) into the next free slot of the ring, published; False if the
     ring was full (a drop, counted). The arrays are ``table``'s (ROW_LAYOUT: the ring's rows and
@@ -60,13 +59,13 @@ def put_tick_row(
 
     The timing fields come as plain ints (a numpy store from Python costs microseconds); the
     row's ``queue_drops`` are the drops counted in the table's headers (the ring's own among
-    them) plus ``other_drops``.
+    them).
     """
     rows, header = view1(table, 0, TICK_DTYPE), view1(table, 1, np.int64)
     work, results = view1(table, 2, np.float64), view3(table, 3, np.float64)
     contact, mass = view2(table, 4, np.int8), view1(table, 5, np.float64)
     position_d, orientation_d = view1(table, 6, np.float64), view1(table, 7, np.float64)
-    queue_drops = other_drops
+    queue_drops = 0
     for i in range(DROPS_FROM, table.shape[0]):
         queue_drops += view1(table, i, np.int64)[DROPPED_AT]
     slot = reserve_slot(header, rows.shape[0])
