@@ -14,11 +14,9 @@ for the reply, and the tick row is written into the ring in place. Stale sensor 
 robot link or a failed Modbus write hold the last safe pose (a controlled stop); a force above
 the protective limit stops the robot (Modbus mode STOP, latched).
 
-Timing. Ticks sit on a grid of nominal times one period apart that follows the sensor's clock:
-it is re-anchored to any frame that arrives early, and every ``GRID_WINDOW`` ticks moved later
-by the smallest lateness of the window (a sensor whose clock runs slow). A tick's lateness is
-its start minus its nominal time; a missed deadline is a tick whose work ended more than one
-period after its nominal time.
+Timing. Ticks sit on a grid of nominal times one period apart that follows the sensor's clock
+(:mod:`.grid`). A tick's lateness is its start minus its nominal time; a missed deadline is a
+tick whose work ended more than one period after its nominal time.
 
 A frame ``NUDGE_NS`` overdue is asked for: the loop wakes and reads every link, readable or not.
 A serial port's bytes reach the reader through the kernel's tty buffer, which a kernel worker of
@@ -53,6 +51,7 @@ from hilrig.errors import HilrigError
 from hilrig.recording.samples import ContactState, EventRecord
 from hilrig.rig.device_io import DeviceIO
 from hilrig.rig.events import EventDetector
+from hilrig.rig.grid import NominalGrid
 from hilrig.rig.loop_figures import LoopStatus, LoopSummary
 from hilrig.rig.virtual import VirtualInput
 from hilrig.robot import RobotModel
@@ -74,7 +73,6 @@ from hilrig.tick.trajectory_kernel import desired_writer
 from hilrig.timing import realtime_python
 
 COMMAND_FAULT_HOLD_NS = 50_000_000  # after a failed joint-target write, hold this long
-GRID_WINDOW = 1000  # ticks over which the nominal grid follows a slow sensor clock
 # A frame this late past its period is asked for: a read hands over what the tty's worker holds
 NUDGE_NS = 200_000
 
@@ -231,27 +229,20 @@ class ControlLoop:
             end_ns = None if duration_s is None else now + round(duration_s * 1e9)
             # the loop's start anchors the grid until a frame re-anchors it: a sensor silent
             # from the start still gets fallback ticks (holding) and the session still ends
-            nominal = now
-            window_min = None
+            grid = NominalGrid(period, now)
             while not stop.is_set():
-                wake_ns = nominal + period + NUDGE_NS  # then read even if nothing is readable
+                last = grid.nominal_ns
+                wake_ns = last + period + NUDGE_NS  # then read even if nothing is readable
                 if time.monotonic_ns() >= wake_ns:
-                    wake_ns = nominal + 2 * period  # the fallback tick's deadline
+                    wake_ns = last + 2 * period  # the fallback tick's deadline
                 now = self._io.wait(wake_ns)
                 frames = len(self._io.pump(now))
                 if frames:  # each frame is one period of the sensor's clock
-                    expected = nominal + period * frames
                     summary.merged_frames += frames - 1
-                elif now >= nominal + 2 * period:
-                    expected = nominal + period  # no frame for a whole period: on the deadline
-                else:
-                    continue
-                nominal = min(expected, now)  # an early frame re-anchors the grid
+                elif now < last + 2 * period:
+                    continue  # no frame yet, and a whole period not yet past: wait on
+                nominal = grid.place(now, frames)
                 lateness = now - nominal
-                window_min = lateness if window_min is None else min(window_min, lateness)
-                if summary.ticks % GRID_WINDOW == GRID_WINDOW - 1:
-                    nominal += window_min  # follow a sensor clock slower than ours
-                    window_min = None
                 if end_ns is not None and nominal >= end_ns:
                     break
                 if not frames:
