@@ -235,8 +235,11 @@ class ControlLoop:
                 wake_ns = last + period + NUDGE_NS  # then read even if nothing is readable
                 if time.monotonic_ns() >= wake_ns:
                     wake_ns = last + 2 * period  # the fallback tick's deadline
-                now = self._io.wait(wake_ns)
-                frames = len(self._io.pump(now))
+                woke = self._io.wait(wake_ns)
+                frames = len(self._io.pump(woke))
+                # the tick's start is after its reads: a read of the port may wait for the tty's
+                # worker, and a frame that came meanwhile must not anchor the grid at the wake-up
+                now = time.monotonic_ns()
                 if frames:  # each frame is one period of the sensor's clock
                     summary.merged_frames += frames - 1
                 elif now < last + 2 * period:
@@ -257,7 +260,7 @@ class ControlLoop:
                         break
                 done = time.monotonic_ns()
                 send_ns = self._send_ns
-                add_period(ticking - now, done - ticking - send_ns, send_ns, lateness)
+                add_period(ticking - woke, done - ticking - send_ns, send_ns, lateness)
                 if done - nominal > period:
                     summary.missed_deadlines += 1
                 summary.missed_deadlines += frames - 1 if frames else 0
