@@ -15,8 +15,9 @@ robot link or a failed Modbus write hold the last safe pose (a controlled stop);
 the protective limit stops the robot (Modbus mode STOP, latched).
 
 Timing. Ticks sit on a grid of nominal times one period apart that follows the sensor's clock
-(:mod:`.grid`). A tick's lateness is its start minus its nominal time; a missed deadline is a
-tick whose work ended more than one period after its nominal time.
+(:mod:`.grid`). A tick starts once its reads returned; its lateness is its start minus its
+nominal time; a missed deadline is a tick whose work ended more than one period after its
+nominal time.
 
 A frame ``NUDGE_NS`` overdue is asked for: the loop wakes and reads every link, readable or not.
 A serial port's bytes reach the reader through the kernel's tty buffer, which a kernel worker of
