@@ -292,7 +292,7 @@ def loop_process(path: Path, done: Connection) -> None:
     recorder = RecorderProcess(path, feed=feed)
     recorder.start(session())
     push_rows(feed, 0, 200, paced=False)
-    # Free the rings' and the queue's names (the recorder keeps its handles), then die at once.
+    # Free the rings' names (the recorder keeps its handles), then die at once.
     feed.close()
     del feed, recorder
     gc.collect()
