@@ -15,9 +15,8 @@ robot link or a failed Modbus write hold the last safe pose (a controlled stop);
 the protective limit stops the robot (Modbus mode STOP, latched).
 
 Timing. Ticks sit on a grid of nominal times one period apart that follows the sensor's clock
-(:mod:`.grid`). A tick starts once its reads returned; its lateness is its start minus its
-nominal time; a missed deadline is a tick whose work ended more than one period after its
-nominal time.
+(:mod:`.grid`). A tick's lateness is its start (the wake-up) minus its nominal time; a missed
+deadline is a tick whose work ended more than one period after its nominal time.
 
 A frame ``NUDGE_NS`` overdue is asked for: the loop wakes and reads every link, readable or not.
 A serial port's bytes reach the reader through the kernel's tty buffer, which a kernel worker of
@@ -236,11 +235,8 @@ class ControlLoop:
                 wake_ns = last + period + NUDGE_NS  # then read even if nothing is readable
                 if time.monotonic_ns() >= wake_ns:
                     wake_ns = last + 2 * period  # the fallback tick's deadline
-                woke = self._io.wait(wake_ns)
-                frames = len(self._io.pump(woke))
-                # the tick's start is after its reads: a read of the port may wait for the tty's
-                # worker, and a frame that came meanwhile must not anchor the grid at the wake-up
-                now = time.monotonic_ns()
+                now = self._io.wait(wake_ns)
+                frames = len(self._io.pump(now))
                 if frames:  # each frame is one period of the sensor's clock
                     summary.merged_frames += frames - 1
                 elif now < last + 2 * period:
@@ -261,7 +257,7 @@ class ControlLoop:
                         break
                 done = time.monotonic_ns()
                 send_ns = self._send_ns
-                add_period(ticking - woke, done - ticking - send_ns, send_ns, lateness)
+                add_period(ticking - now, done - ticking - send_ns, send_ns, lateness)
                 if done - nominal > period:
                     summary.missed_deadlines += 1
                 summary.missed_deadlines += frames - 1 if frames else 0
