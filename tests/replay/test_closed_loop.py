@@ -39,9 +39,10 @@ SECONDS = 2.0 + 2 * (0.05 + 0.02) / 0.1 + 1.0 + 0.6
 #: is for sessions the loop kept up with, and a machine loaded twice over (two test workers, or
 #: ``make test`` beside another) can stall a session's rig for tens of milliseconds: the loop
 #: then ran on samples the re-simulation cannot know were stale (seen: 146 fallback ticks of
-#: 4900 and a 5.6 % peak error).
+#: 4900 and a 5.6 % peak error). In a bad hour of the slow machine's host (1.7 % steal) four
+#: attempts in a row held (2026-12-06): eight, about 5 s each when needed.
 STALE_SHARE = 0.01
-ATTEMPTS = 4
+ATTEMPTS = 8
 
 
 @pytest.fixture(scope="module")
