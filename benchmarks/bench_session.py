@@ -13,15 +13,18 @@ the loop (its devices' I/O and the compiled tick on one thread) here. Five 60 s 
   scheduler plugin, or ``chrt``): hilrig does not change other threads' priorities itself
   (docs/rig.md, "Placing the loop"). Skipped where not permitted (root or CAP_SYS_NICE).
 
-Reported for each: missed deadlines, tick lateness p50/p99/max, compute per tick p50/p99 (the tick
-but for its send: compiled tick, events, row written), the Modbus request's send call (the
+Reported for each: missed deadlines, tick lateness p50/p99/max, compute per tick p50/p99 (the
+tick but for its send: compiled tick, events, row written), the Modbus request's send call (the
 writer's Python and the OS's socket write) and the I/O before the tick (the three links read,
 their rows stored), sensor-to-command (F/T frame read -> Modbus request with its targets sent)
-and to the request's acknowledgement, recorder drops, hold ticks, fallback ticks, the
-emulated rig's CPU (its process's CPU time over the session's wall time, from /proc), and the
-hypervisor's steal over the session (CPU time given to other machines, which no priority here
-can win back). Each session starts once the machine is quiet (:mod:`benchmarks.settle`: the
-suites before it leave these VMs slow to wake for a while), and the wait is reported.
+and to the request's acknowledgement, recorder drops, hold ticks, fallback ticks, the times the
+nominal grid was found early and moved at once (:mod:`hilrig.rig.grid`), the emulated rig's own
+slot lateness (p99 and max: a silence of the rig over 5 ms ages the inputs past the hold limit,
+and the hold ticks then are the rig's, not the loop's) and its slots a period late, its CPU (its
+process's CPU time over the session's wall time, from /proc), and the hypervisor's steal over
+the session (CPU time given to other machines, which no priority here can win back). Each
+session starts once the machine is quiet (:mod:`benchmarks.settle`: the suites before it leave
+these VMs slow to wake for a while), and the wait is reported.
 """
 
 from __future__ import annotations
@@ -194,9 +197,9 @@ def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[
     io = summary.io.summary_us()
     send = summary.send.summary_us()
     missed_pct = 100 * summary.missed_deadlines / summary.ticks
-    rig_p99 = (
-        float("nan") if result.rig_counters is None else result.rig_counters.slot_lateness_us[1]
-    )
+    rig = result.rig_counters
+    rig_p99, rig_max = (float("nan"),) * 2 if rig is None else rig.slot_lateness_us[1:]
+    rig_late = float("nan") if rig is None else rig.slots_late
     detail = {
         "ticks": summary.ticks,
         "missed": summary.missed_deadlines,
@@ -240,7 +243,12 @@ def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[
         row("fallback ticks", summary.fallback_ticks, "ticks"),
         row("of the missed: periods whose frame came with the next (sent or read late)",
             summary.merged_frames, "periods"),
+        row("grid found early and moved at once (50 ticks in a row over 400 us late)",
+            summary.grid_shifts, "times"),
         row("emulated sensor's own send lateness p99 (rig slots)", rig_p99, "us"),
+        row("emulated rig's longest silence past a slot (its lateness max: over 5 ms ages "
+            "the inputs past the hold limit)", rig_max, "us"),
+        row("emulated rig's slots begun a period or more late", rig_late, "slots"),
         row("emulated rig CPU", measured.rig_cpu_pct, "% of a core", "<= 25",
             measured.rig_cpu_pct <= 25),
         row("hypervisor steal over the session", measured.steal_pct, "% of CPU time"),

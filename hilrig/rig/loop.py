@@ -261,6 +261,7 @@ class ControlLoop:
                 if done - nominal > period:
                     summary.missed_deadlines += 1
                 summary.missed_deadlines += frames - 1 if frames else 0
+            summary.grid_shifts = grid.fast_shifts
 
     def tick(self, start_ns: int, nominal_ns: int) -> None:
         """One tick on the newest samples, started at ``start_ns`` for ``nominal_ns``."""

@@ -49,6 +49,7 @@ class LoopSummary:
     fallback_ticks: int = 0  # ticks run on the deadline because no frame came
     merged_frames: int = 0  # frames read together with a newer one: no tick of their own
     hold_ticks: int = 0
+    grid_shifts: int = 0  # times the nominal grid was found early and moved at once (.grid)
     lateness: LatencyHistogram = field(default_factory=LatencyHistogram)
     io: LatencyHistogram = field(default_factory=LatencyHistogram)
     compute: LatencyHistogram = field(default_factory=LatencyHistogram)
