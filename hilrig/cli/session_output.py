@@ -214,6 +214,8 @@ def print_result(console: Console, result: SessionResult) -> None:
             f"  emulated rig: {rig.ft_frames_sent} F/T frames, {rig.joint_frames_sent} joint "
             "states sent",
             f"  emulated rig's own slots late p50 {p50:.0f} us, p99 {p99:.0f} us",
+            # a stop of the rig over the staleness limit holds the robot: the rig's, not the loop's
+            f"  emulated rig's slots skipped after stops of over 5 slots: {rig.slots_skipped}",
         ]
     view = result.view
     if view is not None:

@@ -75,7 +75,7 @@ def result(path: Path, view: LiveReportLike | None = None) -> SessionResult:
         summary.sensor_to_ack.add((lateness_us + 1000) * 1000)
         summary.compute.add(lateness_us // 10 * 1000)
         summary.send.add(lateness_us // 100 * 1000)
-    rig = RigCounters(*(10_000_000,) * 14, slot_lateness_us=(43.0, 1337.0, 9999.0))
+    rig = RigCounters(*(10_000_000,) * 13, 321, slot_lateness_us=(43.0, 1337.0, 9999.0))
     return SessionResult(
         path,
         summary,
@@ -109,6 +109,7 @@ def test_the_summary_fits_80_columns_keeps_every_number_and_reads_no_markup() ->
     assert lines[9:] == [
         "  emulated rig: 10000000 F/T frames, 10000000 joint states sent",
         "  emulated rig's own slots late p50 43 us, p99 1337 us",
+        "  emulated rig's slots skipped after stops of over 5 slots: 321",
         "  live view: 601 batches shown, 604 sent, 3 dropped",
     ]
     assert all(len(line) <= 80 for line in lines if "a[red]b.mcap" not in line)
