@@ -44,8 +44,10 @@ from pathlib import Path
 
 from benchmarks.harness import Result
 from benchmarks.settle import settle
+from hilrig.emulator.slots import MAX_BEHIND
 from hilrig.machine import Steal
 from hilrig.rig import ControlLoop, RigProcess, SessionConfig, SessionResult, record_session
+from hilrig.rig.grid import FAST_SHIFT_NS, FAST_WINDOW
 from hilrig.robot import aubo_i5_urdf
 from hilrig.viz.live import LiveView
 from hilrig.viz.save_server import rerun_save_server
@@ -246,12 +248,12 @@ def _timing(measured: _Measured, variant: str, *, missed_target: float) -> list[
         row("fallback ticks", summary.fallback_ticks, "ticks"),
         row("of the missed: periods whose frame came with the next (sent or read late)",
             summary.merged_frames, "periods"),
-        row("grid found early and moved at once (50 ticks in a row over 400 us late)",
-            summary.grid_shifts, "times"),
+        row(f"grid found early and moved at once ({FAST_WINDOW} ticks in a row over "
+            f"{FAST_SHIFT_NS // 1000} us late)", summary.grid_shifts, "times"),
         row("emulated sensor's own send lateness p99 (rig slots)", rig_p99, "us"),
         row("emulated rig's slots begun a period or more late", rig_late, "slots"),
-        row("emulated rig's slots skipped (it stopped over 5 periods: its inputs aged past "
-            "the hold limit)", rig_skipped, "slots"),
+        row(f"emulated rig's slots skipped (it stopped over {MAX_BEHIND} periods: its inputs "
+            "aged past the hold limit)", rig_skipped, "slots"),
         row("emulated rig CPU", measured.rig_cpu_pct, "% of a core", "<= 25",
             measured.rig_cpu_pct <= 25),
         row("hypervisor steal over the session", measured.steal_pct, "% of CPU time"),

@@ -183,8 +183,10 @@ def print_verdict(console: Console, result: SessionResult) -> None:
 
 def print_result(console: Console, result: SessionResult) -> None:
     """The session's summary, each line within 80 columns (but the file's name): file, ticks
-    and timing, messages and drops, why it ended early, the emulated rig's own lateness and the
-    live view's batches."""
+    and timing, messages and drops, why it ended early, the emulated rig's own lateness and
+    skipped slots, and the live view's batches."""
+    from hilrig.emulator.slots import MAX_BEHIND
+
     summary = result.summary
     late = summary.lateness.summary_us()
     s2c = summary.sensor_to_command.summary_us()
@@ -215,7 +217,8 @@ def print_result(console: Console, result: SessionResult) -> None:
             "states sent",
             f"  emulated rig's own slots late p50 {p50:.0f} us, p99 {p99:.0f} us",
             # a stop of the rig over the staleness limit holds the robot: the rig's, not the loop's
-            f"  emulated rig's slots skipped after stops of over 5 slots: {rig.slots_skipped}",
+            f"  emulated rig's slots skipped after stops of over {MAX_BEHIND} slots: "
+            f"{rig.slots_skipped}",
         ]
     view = result.view
     if view is not None:
