@@ -29,6 +29,11 @@ def closed_summary(replayed: Replayed) -> list[str]:
         f"delay {1000 * r['delay_s']:.1f} ms ({r['source']}; RMS joint error "
         f"{1000 * r['rms_rad']:.3f} mrad){measured}"
     ]
+    if record["recorded_link_holds"]:
+        lines.append(
+            f"the live loop held {record['recorded_link_holds']} ticks for a stale link or a "
+            "failed command: every run holds on them too"
+        )
     collisions = record["collisions"]
     if not collisions:
         lines.append("no collision in the recording: every run met the recorded force")

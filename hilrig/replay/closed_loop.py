@@ -13,8 +13,9 @@ Per recorded tick ``k`` (at the recorded tick times, so the loop's timing is the
    motion the input is the recorded one exactly, so whatever the model does not explain
    (sensor noise, other axes, the joints' torques) is kept as recorded; a force source's
    collision is played as recorded;
-3. the tick kernel runs on it as live (controller, protective stop, X_r = X_d + e, IK, clamp);
-   its commanded joints go to the servos.
+3. the tick kernel runs on it as live (controller, protective stop, X_r = X_d + e, IK, clamp),
+   with the link flags the live tick had (``link_flags``: a recorded hold holds here too,
+   :mod:`hilrig.replay.recorded_holds`); its commanded joints go to the servos.
 
 The compensation is zero and the input enters as the tick's extra input: the recorded input is
 already compensated and in the base frame.
@@ -120,6 +121,7 @@ def simulate_kernel(
     position_d: Array,
     rotation_d: Array,
     contact_rec: Array,
+    link_flags: NDArray[np.int64],
     collisions: Array,
     tick_args: tuple[Any, ...],  # CompiledTick.kernel_args()
     inputs: tuple[Any, ...],  # some of them by name: kernel_inputs()
@@ -145,7 +147,6 @@ def simulate_kernel(
     pose = np.eye(4)
     previous = np.array([-1.0, 0.0, 0.0, 0.0, 0.0])
     point = np.zeros(3)
-    flags = 7  # SENSOR_OK | ROBOT_OK | COMMAND_OK: the simulated devices are never stale
     n, axes_count = t_s.shape[0], force_rec.shape[1]
     current = -1
     for k in range(n):
@@ -169,7 +170,7 @@ def simulate_kernel(
             position[r] = position_d[k, r]
             for c in range(3):
                 rotation[r, c] = rotation_d[k, r, c]
-        tick_kernel(*tick_args, flags)  # type: ignore[call-arg]
+        tick_kernel(*tick_args, link_flags[k])  # type: ignore[call-arg]
         commands_t_s[k] = t
         for j in range(6):
             commands_q[k, j] = q_cmd[j]

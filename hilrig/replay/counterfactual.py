@@ -47,6 +47,7 @@ from hilrig.replay.closed_loop import (
     simulate_kernel,
 )
 from hilrig.replay.engine import local_cores
+from hilrig.replay.recorded_holds import ALL_OK
 from hilrig.replay.results import FLOAT_ROWS, INPUT_KEY, Run, frame
 from hilrig.replay.session_world import SessionWorld
 from hilrig.robot import RobotModel
@@ -130,6 +131,7 @@ def simulate_run(
         world.position_d,
         world.rotation_d,
         world.contact_rec_m,
+        world.link_flags,
         packed_collisions(world),
         tick.kernel_args(),
         kernel_inputs(tick),
@@ -321,6 +323,7 @@ def closed_loop_record(
             ),
         },
         "collisions": collisions,
+        "recorded_link_holds": int(np.count_nonzero(world.link_flags != ALL_OK)),
         "hold_ticks": [s.hold_ticks for s in done],
         "stopped": [s.stopped for s in done],
     }

@@ -30,6 +30,7 @@ from hilrig.recording import read
 from hilrig.recording.schema import AXIS_NAMES
 from hilrig.replay.engine import local_cores
 from hilrig.replay.inputs import SessionIndex, session_index, trace_from_state
+from hilrig.replay.recorded_holds import recorded_flags
 from hilrig.replay.trace import ForceTrace
 from hilrig.robot import RobotModel
 from hilrig.robot.kinematics import CompiledChain, fk_into
@@ -44,12 +45,13 @@ EVENT_PAD_S = 0.3
 CLOCK_WINDOW_S = 10.0  # the robot clock's offset is taken per window this long
 POOL_MIN_COLLISIONS = 4  # fitted in a process pool from this many (about 0.5 s each)
 
-STATE, JOINTS, COMMANDED, DESIRED, INPUT = (
+STATE, JOINTS, COMMANDED, DESIRED, INPUT, EVENTS = (
     "/controller/state",
     "/joint_states",
     "/trajectory/commanded",
     "/trajectory/desired",
     "/controller/input",
+    "/events",
 )
 Array = NDArray[np.float64]
 
@@ -82,6 +84,7 @@ class SessionWorld:
     orientation_d: Array  # (n, 4) its quaternion (w, x, y, z)
     q_start_rad: Array  # (6,) measured joints at the first tick
     contact_rec_m: Array  # (n, 3) each collision's contact point, recorded motion, base, m
+    link_flags: NDArray[np.int64]  # (n,) the live tick's link flags (recorded_holds.py)
     response: ServoResponse
     collisions: tuple[Collision, ...]
     emulated: bool
@@ -114,7 +117,7 @@ def load_world(
     closed loop needs or a collision that cannot be fitted."""
     index = session_index(path)
     try:
-        frames = read(path, [STATE, JOINTS, COMMANDED, DESIRED, INPUT]).frames
+        frames = read(path, [STATE, JOINTS, COMMANDED, DESIRED, INPUT, EVENTS]).frames
     except RecordingError as err:
         raise ReplayError(str(err)) from err
     for topic in (STATE, JOINTS, COMMANDED, DESIRED):
@@ -187,6 +190,7 @@ def load_world(
         orientation_d,
         np.ascontiguousarray(q_measured[latest[0]]),
         contact_rec,
+        recorded_flags(state.index.to_numpy(np.int64), frames.get(EVENTS)),
         response,
         tuple(collisions),
         emulated,

@@ -15,10 +15,10 @@ from numpy.typing import NDArray
 from hilrig.control import ContactState
 from hilrig.recording.samples import EventKind, EventRecord
 from hilrig.tick.clamp_kernels import Clamp
+from hilrig.tick.links import FRESH_AGAIN, STALE
 
 GROUPS = (("end effector", 0), ("joints", 3))  # (name, first axis) of each axis group
-#: What a device's data going stale means, and what limiting a command does (docs/rig.md).
-STALE = "stale or lost: the robot holds its pose until the data is fresh again"
+#: What limiting a command does (docs/rig.md).
 CLAMPED = " (the commanded motion was limited to stay safe)"
 
 
@@ -52,7 +52,7 @@ class EventDetector:
         if ok == before:
             return
         self._links[device] = ok
-        detail = "data fresh again: tracking resumes" if ok else STALE
+        detail = FRESH_AGAIN if ok else STALE
         self._emit(EventRecord(t_ns, EventKind.FAULT, device, detail))
 
     def clamp(self, flags: int, t_ns: int) -> None:

@@ -56,6 +56,7 @@ from hilrig.rig.loop_figures import LoopStatus, LoopSummary
 from hilrig.rig.virtual import VirtualInput
 from hilrig.robot import RobotModel
 from hilrig.tick.kernel import CONTACT_CHANGED, FRESH, HELD, STOP_NOW, CompiledTick, TickInputs
+from hilrig.tick.links import COMMAND_FAULT_HOLD_NS, COMMAND_LINK, ROBOT_LINK, SENSOR_LINK
 from hilrig.tick.loop_step import (
     CLAMP_CHANGED,
     HOLD_UNTIL_NS,
@@ -72,7 +73,6 @@ from hilrig.tick.trajectory import Trajectory
 from hilrig.tick.trajectory_kernel import desired_writer
 from hilrig.timing import realtime_python
 
-COMMAND_FAULT_HOLD_NS = 50_000_000  # after a failed joint-target write, hold this long
 # A frame this late past its period is asked for: a read hands over what the tty's worker holds
 NUDGE_NS = 200_000
 
@@ -269,7 +269,7 @@ class ControlLoop:
         if targets.errors != self._command_errors:  # a Modbus exception, timeout or lost link
             self._command_errors = targets.errors
             self._words[HOLD_UNTIL_NS] = start_ns + COMMAND_FAULT_HOLD_NS
-            self._events.fault("joint targets", str(targets.last_error), start_ns)
+            self._events.fault(COMMAND_LINK, str(targets.last_error), start_ns)
         # the task is sampled at the tick's nominal time, not its jittery start, so the
         # commanded path is as smooth as the controller's fixed dt assumes
         t_s = (nominal_ns - self._t0_ns) / 1e9
@@ -304,9 +304,9 @@ class ControlLoop:
         """The events of a tick whose result says something changed."""
         events = self._events
         if result & SENSOR_CHANGED:
-            events.link("wrist F/T sensor", bool(result & SENSOR_IS_OK), t_ns)
+            events.link(SENSOR_LINK, bool(result & SENSOR_IS_OK), t_ns)
         if result & ROBOT_CHANGED:
-            events.link("robot joint state", bool(result & ROBOT_IS_OK), t_ns)
+            events.link(ROBOT_LINK, bool(result & ROBOT_IS_OK), t_ns)
         if result & CONTACT_CHANGED:
             events.contact(self._controller.contact, t_ns)
         if result & STOP_NOW:

@@ -55,6 +55,7 @@ from hilrig.rig.rig_process import RigCounters, RigProcess
 from hilrig.rig.session_config import SessionConfig
 from hilrig.rig.warm_up import warm_up
 from hilrig.robot import RobotModel
+from hilrig.tick.links import ROBOT_LINK, SENSOR_LINK
 from hilrig.tick.safety import SafetyClamp, SafetyConfig
 from hilrig.tick.trajectory import make_trajectory
 from hilrig.timing import freeze_heap
@@ -294,7 +295,7 @@ def _wait_for_robot(devices: DeviceIO) -> np.void:
     give_up = time.monotonic_ns() + round(FIRST_SAMPLE_TIMEOUT_S * 1e9)
     robot, sensor = devices.robot, devices.sensor
     if not devices.pump_until(lambda _: None not in (robot.latest(), sensor.latest()), give_up):
-        missing = "robot joint state" if robot.latest() is None else "wrist F/T sensor"
+        missing = ROBOT_LINK if robot.latest() is None else SENSOR_LINK
         raise LinkError(f"{missing}: no valid frame within {FIRST_SAMPLE_TIMEOUT_S} s")
     latest = robot.latest()
     assert latest is not None

@@ -23,6 +23,10 @@ EXAMPLE = Path(__file__).parents[2] / "recordings" / "example-paper-end-effector
 AXES = ("x", "y", "z", "joint1", "joint2", "joint3", "joint4", "joint5", "joint6")
 START_MONO_NS = 7_000_000_000
 CHANNELS = {c.topic: c for c in default_channels()}
+#: A stiff hand pushing along base x: 20 mm past the tool at 0.1 m/s, held 1 s, once
+#: (``hand-contact``'s settings), and a session long enough for it and the return.
+HAND = {"direction_in_base": "1,0,0", "stiffness_n_m": 800, "depth_m": 0.02, "period_s": None}
+HAND_SECONDS = 2.0 + 2 * (0.05 + 0.02) / 0.1 + 1.0 + 0.6
 
 
 def session_info(params: Mapping[str, object] | None = None) -> SessionInfo:

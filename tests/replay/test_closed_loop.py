@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from replay_helpers import EXAMPLE
+from replay_helpers import EXAMPLE, HAND, HAND_SECONDS
 from typer.testing import CliRunner
 
 from hilrig.analysis import analyze, load_replay
@@ -29,18 +29,13 @@ from hilrig.robot import RobotModel
 from hilrig.world.contact import Mechanics
 
 runner = CliRunner()
-#: A stiff hand pushing along base x: 20 mm past the tool at 0.1 m/s, held 1 s, once.
-HAND = {"direction_in_base": "1,0,0", "stiffness_n_m": 800, "depth_m": 0.02, "period_s": None}
-SECONDS = 2.0 + 2 * (0.05 + 0.02) / 0.1 + 1.0 + 0.6
-
-
-#: Recordings whose loop fell back to stale samples on more ticks than this share, or held, are
-#: recorded again (at most ATTEMPTS times): the reproduction target (docs/replay.md, Validation)
-#: is for sessions the loop kept up with, and a machine loaded twice over (two test workers, or
-#: ``make test`` beside another) can stall a session's rig for tens of milliseconds: the loop
-#: then ran on samples the re-simulation cannot know were stale (seen: 146 fallback ticks of
-#: 4900 and a 5.6 % peak error). In a bad hour of the slow machine's host (1.7 % steal) four
-#: attempts in a row held (2026-12-06): eight, about 5 s each when needed.
+#: Recordings whose loop fell back to stale samples on more ticks than this share are recorded
+#: again (at most ATTEMPTS times): the predictions compare two sessions of one volunteer, and a
+#: machine loaded twice over (two test workers, or ``make test`` beside another) can stall a
+#: session's rig for tens of milliseconds, the truth session's own stalls then being ones the
+#: other's prediction cannot know of. A session's holds are replayed (its own reproduction is
+#: not hurt by them: test_replayed_holds.py), so a few short stalls are accepted; about 5 s an
+#: attempt when needed.
 STALE_SHARE = 0.01
 ATTEMPTS = 8
 
@@ -58,12 +53,12 @@ def recordings(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
                 subject_id="V001",
                 scenario="hand-contact",
                 scenario_settings=dict(HAND),
-                duration_s=SECONDS,
+                duration_s=HAND_SECONDS,
                 trajectory="hold",
                 loop=LoopConfig(law=law),
             )
             summary = record_session(config, stop=threading.Event()).summary
-            if summary.hold_ticks == 0 and summary.fallback_ticks <= STALE_SHARE * summary.ticks:
+            if summary.fallback_ticks <= STALE_SHARE * summary.ticks:
                 break
         else:
             pytest.fail(
