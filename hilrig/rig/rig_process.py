@@ -48,8 +48,11 @@ def _serve(conn: Connection, scenario: str | Scenario, config: RigConfig) -> Non
     """The child: open the rig, report its endpoints, run its slot loop until told to stop or
     the parent is gone, report the final counters."""
     rig = EmulatedRig(scenario, config=config)
+    # no collector pass over the imports stops the rig's one thread mid-session; frozen before
+    # open() anchors the slots' grid (the pass took about 50 ms: so many slots were skipped
+    # before the first one ran)
+    freeze_heap()
     endpoints = rig.open()
-    freeze_heap()  # no collector pass over the imports stops the rig's one thread mid-session
     report(conn, "endpoints", endpoints)
 
     def on_message() -> None:
