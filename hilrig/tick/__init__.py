@@ -7,6 +7,6 @@ the closed-loop replay both run it.
 compiled call), :mod:`.row` (the tick's recorder row), :mod:`.safety` and :mod:`.clamp_kernels` (the
 safety clamp: its configuration, reference path and compiled kernels), :mod:`.trajectory` (the task
 trajectories X_d(t)), :mod:`.links` (the links' names in the loop's events and how long a failed
-command holds, which replay reads back). It sits below the rig and replay, which import it, and above control, the
-drivers' compensation and the robot model, which it composes.
+command holds, which replay reads back). It sits below the rig and replay, which import it, and
+above control, the drivers' compensation and the robot model, which it composes.
 """
