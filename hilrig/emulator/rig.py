@@ -54,16 +54,23 @@ class RigEndpoints:
     """Where a driver finds each device of the rig."""
 
     ft_wrist_port: str  # serial port path (a pty here)
-    robot_state: tuple[str, int]  # TCP host, port
-    modbus: tuple[str, int]  # RTU over TCP host, port
+    robot_state: tuple[str, int] = ("", 0)  # TCP host, port ("": none)
+    modbus: tuple[str, int] = ("", 0)  # RTU over TCP host, port ("": none)
+    aubo_rpc: tuple[str, int] = ("", 0)  # AUBO ARCS JSON-RPC host, port ("": none)
+    aubo_rtde: tuple[str, int] = ("", 0)  # AUBO ARCS RTDE host, port ("": none)
 
     def lines(self) -> list[str]:
-        """Human-readable endpoint lines, one per device."""
-        return [
-            f"wrist F/T sensor (Kunwei, 460800 8N1): {self.ft_wrist_port}",
-            f"robot joint state (TCP): {self.robot_state[0]}:{self.robot_state[1]}",
-            f"joint targets (Modbus RTU over TCP): {self.modbus[0]}:{self.modbus[1]}",
-        ]
+        """Human-readable endpoint lines, one per device served."""
+        lines = [f"wrist F/T sensor (Kunwei, 460800 8N1): {self.ft_wrist_port}"]
+        for label, (host, port) in (
+            ("AUBO ARCS JSON-RPC (TCP)", self.aubo_rpc),
+            ("AUBO ARCS RTDE (TCP)", self.aubo_rtde),
+            ("robot joint state (TCP)", self.robot_state),
+            ("joint targets (Modbus RTU over TCP)", self.modbus),
+        ):
+            if host:
+                lines.append(f"{label}: {host}:{port}")
+        return lines
 
 
 @dataclass(frozen=True)
