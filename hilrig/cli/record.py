@@ -9,7 +9,17 @@ import typer
 
 from hilrig.cli.app import app
 from hilrig.cli.options import SCENARIO_NAMES, SCENARIO_SETTINGS_HELP, LawOption
-from hilrig.rig.kinds import RigKind
+from hilrig.cli.robot_options import (
+    PasswordFile,
+    RobotHost,
+    RobotLinkOption,
+    RobotUser,
+    RtdeRate,
+    ServoGain,
+    ServoLookahead,
+    ServoRate,
+)
+from hilrig.rig.kinds import RigKind, RobotLinkKind
 
 if TYPE_CHECKING:
     from hilrig.rig import SessionConfig
@@ -23,13 +33,22 @@ def record(
         str, typer.Option(help="Pseudonymous subject id like S012 (names are refused).")
     ],
     rig: Annotated[
-        RigKind, typer.Option(help="emulated (started here) or aubo.")
+        RigKind, typer.Option(help="emulated (started here) or aubo (a real AUBO-i5).")
     ] = RigKind.EMULATED,
+    robot: RobotHost = None,
+    robot_link: RobotLinkOption = RobotLinkKind.ARCS,
+    robot_user: RobotUser = "aubo",
+    robot_password_file: PasswordFile = None,
+    servo_rate: ServoRate = 200.0,
+    servo_lookahead: ServoLookahead = 0.05,
+    servo_gain: ServoGain = 200.0,
+    rtde_rate: RtdeRate = 500.0,
     config: Annotated[
         Path | None,
         typer.Option(
-            help="TOML: \\[endpoints] of a real rig (ft_wrist_port = '/dev/ttyUSB0', robot_state "
-            "= 'host:8002', modbus = 'host:502', RTU over TCP) and/or \\[trajectory] (name = "
+            help="TOML: \\[endpoints] of a real rig (ft_wrist_port = '/dev/ttyUSB0'; with "
+            "--robot-link modbus robot_state = 'host:8002', modbus = 'host:502'), \\[robot] (host, "
+            "rpc_port, rtde_port of the AUBO controller) and/or \\[trajectory] (name = "
             "'waypoints', points = \\[\\[t_s, dx_m, dy_m, dz_m], ...], or another trajectory's "
             "options) and/or \\[scenario] (name = 'hand-contact' and its settings, e.g. "
             "stiffness_n_m = 800)."
@@ -112,6 +131,7 @@ def record(
     import time
 
     from hilrig.cli.errors import print_waiting, print_warning
+    from hilrig.cli.robot_options import arcs_settings, real_endpoints
     from hilrig.cli.session_output import (
         SessionWatch,
         print_result,
@@ -122,17 +142,28 @@ def record(
     from hilrig.rig import LoopConfig, SessionConfig, record_session
     from hilrig.rig.config_file import RigFile, read_rig_file, session_path
 
-    if rig is RigKind.AUBO and config is None:
-        raise HilrigError("--rig aubo needs --config with the rig's endpoints")
     sink = view_sink(view, view_url, view_save)
     settings = read_rig_file(config) if config is not None else RigFile()
+    endpoints = real_endpoints(settings, robot) if rig is RigKind.AUBO else None
+    if rig is RigKind.EMULATED and robot is not None:
+        raise HilrigError("--robot HOST is for --rig aubo (the emulated rig serves its own)")
     session = SessionConfig(
         out=session_path(out, subject),
         subject_id=subject,
         scenario=scenario or settings.scenario or "paper-end-effector",
         scenario_settings={**settings.scenario_settings, **key_values(scenario_set or [])},
         rig=rig,
-        endpoints=settings.endpoints,
+        endpoints=endpoints,
+        robot_link=robot_link,
+        arcs=arcs_settings(
+            emulated=rig is RigKind.EMULATED,
+            user=robot_user,
+            password_file=robot_password_file,
+            servo_rate_hz=servo_rate,
+            lookahead_s=servo_lookahead,
+            gain=servo_gain,
+            rtde_rate_hz=rtde_rate,
+        ),
         duration_s=duration,
         trajectory=settings.trajectory or trajectory,
         trajectory_options=settings.trajectory_options,

@@ -1,12 +1,15 @@
 """``hilrig rig serve``: the emulated rig as its own process, until Ctrl-C or SIGTERM."""
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from hilrig.cli.app import Group, app
 from hilrig.cli.options import SCENARIO_NAMES
+
+if TYPE_CHECKING:
+    from hilrig.emulator.rig import RigEndpoints
 
 rig_app = typer.Typer(
     cls=Group, help="The emulated rig (devices behind their real wire protocols)."
@@ -38,10 +41,20 @@ def serve(
     seed: Annotated[
         int, typer.Option(min=0, help="Seed of the sensor and joint-torque noise.")
     ] = 0,
+    as_json: Annotated[
+        bool,
+        typer.Option(
+            "--json",
+            help="Print the endpoints as one JSON object on stdout (ft_wrist_port, aubo_rpc, "
+            "aubo_rtde, robot_state, modbus as host:port), the rest on stderr.",
+        ),
+    ] = False,
 ) -> None:
-    """Run the emulated AUBO-i5 and wrist F/T sensor; print their endpoints; stop on Ctrl-C.
+    """Run the emulated AUBO-i5 (an ARCS controller: JSON-RPC and RTDE, and the Modbus pair) and
+    wrist F/T sensor; print their endpoints; stop on Ctrl-C.
 
     The rig's slot loop runs in this process's main thread (real-time priority where permitted).
+    Its controller's user is aubo, password 123456 (as a new AUBO controller's).
     """
     import math
     import signal
@@ -59,13 +72,15 @@ def serve(
     if port_path is not None:
         check_port_folder(port_path)
     # endpoint lines: never wrapped, a path shown as it is (no markup)
-    console = Console(soft_wrap=True, highlight=False, markup=False)
+    console = Console(soft_wrap=True, highlight=False, markup=False, stderr=as_json)
     config = RigConfig(rate_hz=rate_hz, seed=seed)
     rig = EmulatedRig(volunteer_model, config=config, port_path=port_path)
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: rig.request_stop())
     endpoints = rig.open()
     try:
+        if as_json:
+            print(endpoints_json(endpoints), flush=True)
         console.print(f"emulated rig running, scenario {volunteer}, {rate_hz:g} Hz")
         for line in endpoints.lines():
             console.print(f"  {line}")
@@ -79,6 +94,24 @@ def serve(
         f"stopped: {counts.ft_frames_sent} F/T frames, {counts.joint_frames_sent} joint-state "
         f"frames, {counts.modbus_writes} target writes, {counts.slots_late} late slots, "
         f"{counts.slots_skipped} skipped"
+    )
+
+
+def endpoints_json(endpoints: RigEndpoints) -> str:
+    """The endpoints as one line of JSON: the port's path, each socket as ``host:port``."""
+    import json
+
+    sockets = {
+        "aubo_rpc": endpoints.aubo_rpc,
+        "aubo_rtde": endpoints.aubo_rtde,
+        "robot_state": endpoints.robot_state,
+        "modbus": endpoints.modbus,
+    }
+    return json.dumps(
+        {
+            "ft_wrist_port": endpoints.ft_wrist_port,
+            **{name: f"{host}:{port}" for name, (host, port) in sockets.items() if host},
+        }
     )
 
 

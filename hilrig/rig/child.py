@@ -103,6 +103,20 @@ class ChildProcess:
         """A report, or the child's end, is waiting (at most ``timeout_s`` for it)."""
         return self._connection().poll(timeout_s)
 
+    def fileno(self) -> int:
+        """The pipe's descriptor: readable once a report, or the child's end, is waiting."""
+        return self._connection().fileno()
+
+    def next_report(self) -> tuple[str, Any]:
+        """The next ``(kind, value)`` report as it is (blocks); ``("ended", exit code)`` once
+        the child is gone."""
+        try:
+            kind, value = self._connection().recv()
+        except (EOFError, OSError):
+            self._join()
+            return "ended", self.exitcode
+        return str(kind), value
+
     def receive(self, kind: str) -> Any:
         """The value of the child's next report, which should be ``kind`` (blocks). Raises
         ``error`` with the child's own message, or with how it ended if it sent none."""

@@ -2,8 +2,12 @@
 
     [endpoints]                       # a real rig
     ft_wrist_port = "/dev/ttyUSB0"
-    robot_state = "host:8002"
-    modbus = "host:502"               # Modbus RTU over TCP
+    robot_state = "host:8002"         # with --robot-link modbus only
+    modbus = "host:502"               # Modbus RTU over TCP, likewise
+    [robot]                           # the AUBO controller (ARCS); --robot HOST overrides host
+    host = "192.168.1.10"
+    rpc_port = 30004                  # the controller's defaults
+    rtde_port = 30010
     [trajectory]                      # the task: a trajectory's name and its builder's options
     name = "waypoints"
     points = [[1.0, 0.0, 0.02, 0.0]]  # [t_s, dx_m, dy_m, dz_m], ...
@@ -12,7 +16,8 @@
     stiffness_n_m = 800
     direction_in_base = [1, 0, 0]
 
-Any table may be left out: the emulated rig needs no endpoints.
+Any table may be left out: the emulated rig needs no endpoints. No password here: it comes from
+a file (``--robot-password-file``) or the environment.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from typing import Any
 from hilrig.emulator.rig import RigEndpoints
 from hilrig.errors import HilrigError, OutputError
 from hilrig.outputs import check_new_file
+from hilrig.rig.arcs.settings import RPC_PORT, RTDE_PORT
 
 #: Where new recordings go unless told.
 RECORDINGS = Path("recordings")
@@ -55,7 +61,11 @@ def read_rig_file(path: Path) -> RigFile:
     settings = _table(path, config, "scenario")
     scenario = settings.pop("name", None)
     return RigFile(
-        endpoints=_endpoints(path, config["endpoints"]) if "endpoints" in config else None,
+        endpoints=(
+            _endpoints(path, config["endpoints"], _table(path, config, "robot"))
+            if "endpoints" in config
+            else None
+        ),
         trajectory=None if name is None else str(name),
         trajectory_options=options,
         scenario=None if scenario is None else str(scenario),
@@ -82,17 +92,27 @@ def _check_trajectory(path: Path, name: str, options: dict[str, object]) -> None
         raise HilrigError(f"{path}: [trajectory] {err}") from None
 
 
-def _endpoints(path: Path, table: Any) -> RigEndpoints:
+def _endpoints(path: Path, table: Any, robot: dict[str, object]) -> RigEndpoints:
     try:
-        robot_host, robot_port = str(table["robot_state"]).rsplit(":", 1)
-        modbus_host, modbus_port = str(table["modbus"]).rsplit(":", 1)
+        if "password" in robot:
+            raise ValueError("a password has no place in a config file")
         return RigEndpoints(
             str(table["ft_wrist_port"]),
-            (robot_host, int(robot_port)),
-            (modbus_host, int(modbus_port)),
+            _host_port(table.get("robot_state")),
+            _host_port(table.get("modbus")),
+            (str(robot.get("host", "")), int(str(robot.get("rpc_port", RPC_PORT)))),
+            (str(robot.get("host", "")), int(str(robot.get("rtde_port", RTDE_PORT)))),
         )
-    except (KeyError, ValueError, TypeError) as err:
-        raise HilrigError(f"{path}: no valid [endpoints] table ({err})") from err
+    except (KeyError, ValueError, TypeError, AttributeError) as err:
+        raise HilrigError(f"{path}: no valid [endpoints] and [robot] tables ({err})") from err
+
+
+def _host_port(value: object) -> tuple[str, int]:
+    """``"host:port"`` as a pair; ("", 0) for none."""
+    if value is None:
+        return ("", 0)
+    host, port = str(value).rsplit(":", 1)
+    return (host, int(port))
 
 
 def session_path(out: Path | None, stem: str) -> Path:

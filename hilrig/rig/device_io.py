@@ -1,7 +1,8 @@
-"""The loop thread's side of the three device links: wait on them, read them, record every sample.
+"""The loop thread's side of the device links: wait on them, read them, record every sample.
 
-:class:`DeviceIO` holds the wrist F/T sensor, the robot's joint-state stream and the Modbus
-joint-target writer, all polled (no driver thread), and the recorder's feed. ``wait`` sleeps in
+:class:`DeviceIO` holds the wrist F/T sensor and the robot's link (its joint states and joint
+targets, :mod:`.robot_port`: the Modbus pair or AUBO's ARCS interface), all polled (no driver
+thread on the loop's side), and the recorder's feed. ``wait`` sleeps in
 ``select`` until one of them has data or a deadline passes; ``pump`` reads each without blocking
 and puts every sample into its ring at once, from the first sample on (also while the session
 tares and waits for the recorder, before the first tick). The drivers return their samples as
@@ -17,23 +18,22 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from hilrig.drivers.ft.link import FtSerial, SampleRows
-from hilrig.drivers.joint_targets.link import JointTargetsWriter
-from hilrig.drivers.robot_state.link import RobotStateClient
 from hilrig.rig.recorder_feed import RecorderFeed
 from hilrig.rig.rings import Ring
+from hilrig.rig.robot_port import JointStateSource, JointTargetSink
 
 
 @dataclass
 class DeviceIO:
-    """The three device links of a session and, when recording, the recorder's feed."""
+    """The device links of a session and, when recording, the recorder's feed."""
 
     sensor: FtSerial
-    robot: RobotStateClient
-    targets: JointTargetsWriter
+    robot: JointStateSource
+    targets: JointTargetSink
     feed: RecorderFeed | None = None
     samples_read: int = 0  # wrist samples and joint states read so far
-    watch_fd: int = -1  # a file the wait watches beside the sensor (-1: none) ...
-    watched: bool = False  # ... and whether the last wait found it readable
+    watch_fds: tuple[int, ...] = ()  # files the wait watches beside the sensor ...
+    watched: bool = False  # ... and whether the last wait found one readable
 
     def __post_init__(self) -> None:
         if self.feed is not None:  # a poll's rows: the first of its driver's rows
@@ -41,19 +41,16 @@ class DeviceIO:
             self.feed.ft.feed_from(self.sensor.rows)
 
     def wait(self, deadline_ns: int) -> int:
-        """Sleep until the wrist sensor has data, ``watch_fd`` is readable (then ``watched``)
-        or ``deadline_ns`` (monotonic); returns the time now. Only the sensor wakes the loop
-        for data: the joint state of its period arrives before it, and Modbus replies are taken
-        at the next tick, so one wake-up serves a period."""
+        """Sleep until the wrist sensor has data, one of ``watch_fds`` is readable (then
+        ``watched``) or ``deadline_ns`` (monotonic); returns the time now. Only the sensor
+        wakes the loop for data: the robot's state of its period arrives before it, and the
+        robot link's replies are taken at the next tick, so one wake-up serves a period."""
         self.watched = False
         timeout_ns = deadline_ns - time.monotonic_ns()
         if timeout_ns > 0:
-            fd, watch = self.sensor.fileno(), self.watch_fd
-            fds = [fd] if fd >= 0 else []
-            if watch >= 0:
-                fds.append(watch)
-            ready = select.select(fds, [], [], timeout_ns / 1e9)[0]
-            self.watched = watch >= 0 and watch in ready
+            fd, watch = self.sensor.fileno(), self.watch_fds
+            ready = select.select([fd, *watch] if fd >= 0 else watch, [], [], timeout_ns / 1e9)[0]
+            self.watched = bool(watch) and (len(ready) > 1 or (bool(ready) and ready[0] != fd))
         return time.monotonic_ns()
 
     def pump_until(

@@ -1,5 +1,5 @@
-"""Which rig a session runs on: a module of its own, so the command line parses ``--rig``
-without loading the rig."""
+"""Which rig a session runs on and which interface drives its robot: a module of its own, so the
+command line parses ``--rig`` and ``--robot-link`` without loading the rig."""
 
 from enum import StrEnum
 
@@ -9,3 +9,10 @@ class RigKind(StrEnum):
 
     EMULATED = "emulated"
     AUBO = "aubo"
+
+
+class RobotLinkKind(StrEnum):
+    """Which interface a session drives the robot through (:mod:`hilrig.rig.robot_links`)."""
+
+    ARCS = "arcs"
+    MODBUS = "modbus"

@@ -1,18 +1,21 @@
 """The real-time loop: one thread does the devices' I/O and the tick, triggered by the sensor.
 
-The loop's thread owns every device link (no driver thread competes with it for the GIL). It
-sleeps in ``select`` on the wrist sensor's serial port, the robot's joint-state socket and the
-Modbus socket; whatever arrives is read without blocking and every sample goes to the recorder's
-rings at once. A completed wrist F/T frame starts a tick (sensor-triggered), so the command
-leaves within the period in which its sample arrived; if no frame comes for a whole period past
-the expected one, a fallback tick runs on the deadline (it will hold once inputs are stale).
+The loop's thread owns the wrist sensor's link and polls the robot's (no driver thread competes
+with it for the GIL): it sleeps in ``select`` on the sensor's serial port; whatever arrives is
+read without blocking and every sample goes to the recorder's rings at once. The robot's link
+(:mod:`.robot_port`) is polled at every tick: AUBO's ARCS interface through shared-memory rings
+to its own process, or the Modbus pair on sockets. A completed wrist F/T frame starts a tick
+(sensor-triggered), so the command leaves within the period in which its sample arrived; if no
+frame comes for a whole period past the expected one, a fallback tick runs on the deadline (it
+will hold once inputs are stale).
 
 One tick (docs/rig.md, the path of a force sample): the newest wrist sample and joint state go
 through the compiled tick (:mod:`hilrig.tick.kernel`: compensation, base frame, 9-axis controller,
-IK, joint offsets, safety clamp), the joint targets leave as a Modbus request without waiting
-for the reply, and the tick row is written into the ring in place. Stale sensor data, a lost
-robot link or a failed Modbus write hold the last safe pose (a controlled stop); a force above
-the protective limit stops the robot (Modbus mode STOP, latched).
+IK, joint offsets, safety clamp), the joint targets go to the robot's link without waiting (over
+ARCS the link's servo stream sends the newest at the servo rate), and the tick row is written
+into the ring in place. Stale sensor data, a lost robot link or a failed write hold the last
+safe pose (a controlled stop); a force above the protective limit stops the robot (mode STOP,
+latched).
 
 Timing. Ticks sit on a grid of nominal times one period apart that follows the sensor's clock
 (:mod:`.grid`). A tick's lateness is its start (the wake-up) minus its nominal time; a missed
@@ -80,10 +83,11 @@ NUDGE_NS = 200_000
 @dataclass(frozen=True)
 class Watchdog:
     """What ends a session early: ``reason()`` names why ("" for nothing). It is asked only
-    when ``fd`` is readable, which the loop's wait watches beside the sensor (e.g. a child
-    process's sentinel, readable once the process has ended), so no tick pays for asking."""
+    when one of ``fds`` is readable, which the loop's wait watches beside the sensor (e.g. a
+    child process's sentinel, readable once the process has ended, or the robot link's pipe),
+    so no tick pays for asking."""
 
-    fd: int
+    fds: tuple[int, ...]
     reason: Callable[[], str]
 
 
@@ -143,11 +147,12 @@ class ControlLoop:
         on_event: Callable[[EventRecord], None] | None = None,
         virtual: VirtualInput | None = None,
         watchdog: Watchdog | None = None,
+        robot_period_ns: int | None = None,
     ) -> None:
         self.config = config
         self._watchdog = watchdog
         if watchdog is not None:
-            io.watch_fd = watchdog.fd
+            io.watch_fds = watchdog.fds
         self._io = io
         self._sensor = io.sensor
         self._robot = io.robot
@@ -175,7 +180,11 @@ class ControlLoop:
         self.holding = ""  # why the robot holds ("" if it tracks), set by every tick
         self._period_ns = config.period_ns
         self._stale_ns = config.stale_after_ticks * config.period_ns
-        self._words = loop_words(self._stale_ns)  # the loop's settings and last states, compiled
+        # the robot's states come at its own rate (RTDE's, or every tick): as many of its
+        # periods make it stale
+        robot_stale_ns = max(self._stale_ns, config.stale_after_ticks * (robot_period_ns or 0))
+        # the loop's settings and last states, compiled
+        self._words = loop_words(self._stale_ns, robot_stale_ns)
         self._step = self._kernel.loop_step(newest_sample, newest_state, self._words)
         self._inputs = inputs = self._kernel.inputs
         inputs.rotation_d[:] = trajectory.rotation  # the task keeps the start orientation
@@ -266,7 +275,7 @@ class ControlLoop:
     def tick(self, start_ns: int, nominal_ns: int) -> None:
         """One tick on the newest samples, started at ``start_ns`` for ``nominal_ns``."""
         targets = self._targets
-        if targets.errors != self._command_errors:  # a Modbus exception, timeout or lost link
+        if targets.errors != self._command_errors:  # a refused write, a timeout or a lost link
             self._command_errors = targets.errors
             self._words[HOLD_UNTIL_NS] = start_ns + COMMAND_FAULT_HOLD_NS
             self._events.fault(COMMAND_LINK, str(targets.last_error), start_ns)

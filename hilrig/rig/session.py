@@ -35,8 +35,6 @@ from numpy.typing import NDArray
 
 from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.drivers.ft.link import FtSerial, SampleRows
-from hilrig.drivers.joint_targets.link import JointTargetsWriter, ModbusEndpoint
-from hilrig.drivers.robot_state.link import RobotStateClient
 from hilrig.emulator.rig import RigConfig, RigEndpoints
 from hilrig.errors import LinkError, OutputError, RecordingError
 from hilrig.machine.settings import session_warnings
@@ -52,6 +50,7 @@ from hilrig.rig.recorder_feed import RecorderFeed
 from hilrig.rig.recorder_process import RecorderProcess
 from hilrig.rig.records import AXIS_NAMES
 from hilrig.rig.rig_process import RigCounters, RigProcess
+from hilrig.rig.robot_links import RobotLink, open_robot_link
 from hilrig.rig.session_config import SessionConfig
 from hilrig.rig.warm_up import warm_up
 from hilrig.robot import RobotModel
@@ -165,7 +164,7 @@ def record_session(
         else:
             assert config.endpoints is not None
             endpoints = config.endpoints
-        devices = _connect(stack, endpoints, feed)
+        devices, link = _connect(stack, endpoints, feed, config)
         q0 = np.array(_wait_for_robot(devices)["q"], dtype=np.float64)
         start_pose = model.fk(q0)
         compensator = GravityCompensator(config.tool)
@@ -179,9 +178,8 @@ def record_session(
             model=model,
             on_event=collect,
             virtual=config.virtual,
-            watchdog=Watchdog(
-                recorder.sentinel, lambda: "" if recorder.alive() else "the recorder process died"
-            ),
+            watchdog=_watchdog(recorder, link),
+            robot_period_ns=link.state_period_ns,
         )
         recorder.begin(
             SessionInfo.starting_now(
@@ -209,9 +207,12 @@ def record_session(
                 recorder_ready(recorder)
             if on_start is not None:
                 on_start(loop)
+            link.arm()  # servo mode: the link is up and its first state fresh
             if rig is not None:
                 rig.start_scenario()
             summary = loop.run(config.duration_s, stop)
+            if not loop.ended_by.startswith("robot:"):
+                link.disarm()  # out of servo mode before the rig's streams end
             _read_to_the_end(devices, rig)
             outcome = summary.outcome(recorder_drops=feed.drops, ended_by=loop.ended_by)
         except BaseException as err:  # noted and raised once the file is closed
@@ -273,21 +274,31 @@ def _stop_quietly(recorder: RecorderProcess) -> None:
         recorder.stop()
 
 
-def _connect(stack: ExitStack, endpoints: RigEndpoints, feed: RecorderFeed) -> DeviceIO:
-    """Open the three links (no waiting for data: the loop's thread reads from now on). All
-    three are made before any connects: nothing slow may come between the sensor's first byte
-    and the loop's reads."""
+def _connect(
+    stack: ExitStack, endpoints: RigEndpoints, feed: RecorderFeed, config: SessionConfig
+) -> tuple[DeviceIO, RobotLink]:
+    """Open the sensor's and the robot's links (no waiting for data: the loop's thread reads
+    from now on). Both are made before any connects: nothing slow may come between the
+    sensor's first byte and the loop's reads."""
     sensor = FtSerial(endpoints.ft_wrist_port)
-    robot = RobotStateClient(*endpoints.robot_state)
-    # two requests in flight: a reply is read at the next tick, and TCP keeps them in order
-    targets = JointTargetsWriter(ModbusEndpoint(*endpoints.modbus), max_in_flight=2)
+    link = open_robot_link(stack, config.robot_link, endpoints, config.arcs)
     sensor.connect(first_sample_timeout_s=None)
     stack.callback(sensor.close)
-    robot.connect(first_frame_timeout_s=None)
-    stack.callback(robot.close)
-    targets.connect()
-    stack.callback(targets.close)
-    return DeviceIO(sensor, robot, targets, feed)
+    return DeviceIO(sensor, link.states, link.targets, feed), link
+
+
+def _watchdog(recorder: RecorderProcess, link: RobotLink) -> Watchdog:
+    """What ends the session early: the recorder's death, or the robot link's fault (a
+    protective or emergency stop, servo mode left, the link lost)."""
+
+    def reason() -> str:
+        if not recorder.alive():
+            return "the recorder process died"
+        fault = link.fault()
+        return f"robot: {fault}" if fault else ""
+
+    fds = (recorder.sentinel,) if link.fault_fd < 0 else (recorder.sentinel, link.fault_fd)
+    return Watchdog(fds, reason)
 
 
 def _wait_for_robot(devices: DeviceIO) -> np.void:

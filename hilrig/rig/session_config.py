@@ -20,8 +20,9 @@ from hilrig.emulator.rig import RigEndpoints
 from hilrig.errors import HilrigError
 from hilrig.machine import Setting, port_settings, read_settings
 from hilrig.recording import Attachment, validate_subject_id
+from hilrig.rig.arcs.settings import ArcsSettings
 from hilrig.rig.config_file import check_recording_path
-from hilrig.rig.kinds import RigKind
+from hilrig.rig.kinds import RigKind, RobotLinkKind
 from hilrig.rig.loop import LoopConfig
 from hilrig.rig.virtual import VirtualInput
 from hilrig.tick.trajectory import make_trajectory
@@ -37,7 +38,9 @@ EMULATED_TOOL = ToolLoad(mass_kg=0.5, com_in_sensor_m=(0.0, 0.0, 0.05))
 class SessionConfig:
     """One session: who (pseudonym), what (scenario, trajectory, controller), how long, where.
 
-    ``rig`` is "emulated" (started here) or "aubo" with ``endpoints`` of the real devices.
+    ``rig`` is "emulated" (started here) or "aubo" with ``endpoints`` of the real devices;
+    ``robot_link`` the robot's interface (AUBO's ARCS, or the Modbus pair), ``arcs`` the ARCS
+    link's user, password and servo stream (host and ports: the endpoints').
     """
 
     out: Path
@@ -46,6 +49,8 @@ class SessionConfig:
     scenario_settings: dict[str, object] = field(default_factory=dict)  # e.g. stiffness_n_m
     rig: RigKind = RigKind.EMULATED
     endpoints: RigEndpoints | None = None
+    robot_link: RobotLinkKind = RobotLinkKind.ARCS
+    arcs: ArcsSettings = field(default_factory=ArcsSettings)
     duration_s: float | None = 20.0
     trajectory: str = "circle"
     trajectory_options: dict[str, object] = field(default_factory=dict)  # e.g. waypoints' points
@@ -64,6 +69,11 @@ class SessionConfig:
         except ValueError:
             known = ", ".join(kind.value for kind in RigKind)
             raise HilrigError(f"rig {self.rig!r} is not one of: {known}") from None
+        try:
+            object.__setattr__(self, "robot_link", RobotLinkKind(self.robot_link))
+        except ValueError:
+            known = ", ".join(kind.value for kind in RobotLinkKind)
+            raise HilrigError(f"robot link {self.robot_link!r} is not one of: {known}") from None
         if self.rig is RigKind.AUBO and self.endpoints is None:
             raise HilrigError("rig aubo needs its endpoints (a config file)")
         duration = self.duration_s
@@ -104,6 +114,7 @@ class SessionConfig:
         folder may hold a person's name (/home/jane.doe/...)."""
         record = asdict(replace(self, virtual=None))
         record["out"] = self.out.name
+        del record["arcs"]["password"]  # never in a recording
         record["virtual_source"] = without_folders(self.virtual_source)
         if self.virtual is not None:
             record["virtual"] = {

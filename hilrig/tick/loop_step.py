@@ -4,8 +4,9 @@ the same compiled call as the tick itself (:func:`loop_entry`).
 The loop's tick used to judge in Python, every tick, whether the sensor's and the robot's newest
 samples were fresh, which command flags held, and then ask its event detector whether a link's
 state or the clamp's flags had changed. :func:`loop_entry` reads the newest rows' receive times
-in place, takes the flags from them and the loop's ``words`` (:data:`STALE_NS`: the staleness
-limit; :data:`HOLD_UNTIL_NS`: no command before this time, after a failed write), runs
+in place, takes the flags from them and the loop's ``words`` (:data:`STALE_NS` and
+:data:`ROBOT_STALE_NS`: the sensor's and the robot's staleness limits, the robot's following
+its own state rate; :data:`HOLD_UNTIL_NS`: no command before this time, after a failed write), runs
 :func:`~hilrig.tick.step_kernel.tick_kernel` and adds result bits for what changed: the loop
 leaves Python's event detector only for the ticks with something to report (:data:`REPORT`).
 """
@@ -31,8 +32,8 @@ from hilrig.tick.step_kernel import (
 )
 
 # Entries of the loop's int64 words: its settings, then what the last tick saw
-STALE_NS, HOLD_UNTIL_NS, SENSOR_WAS_OK, ROBOT_WAS_OK, CLAMP_WAS = range(5)
-LOOP_WORDS = 5
+STALE_NS, HOLD_UNTIL_NS, SENSOR_WAS_OK, ROBOT_WAS_OK, CLAMP_WAS, ROBOT_STALE_NS = range(6)
+LOOP_WORDS = 6
 # Result bits beyond the tick kernel's (which end at 1 << 11)
 SENSOR_CHANGED, ROBOT_CHANGED, CLAMP_CHANGED = 1 << 12, 1 << 13, 1 << 14
 SENSOR_IS_OK, ROBOT_IS_OK, IS_STOPPED = 1 << 15, 1 << 16, 1 << 17
@@ -44,11 +45,13 @@ _NEWEST_SAMPLE = len(TICK_LAYOUT)
 COUNTERS = _NEWEST_SAMPLE - 1  # the tick's counters: its last array
 
 
-def loop_words(stale_ns: int) -> NDArray[np.int64]:
+def loop_words(stale_ns: int, robot_stale_ns: int | None = None) -> NDArray[np.int64]:
     """The words of a loop about to start: both links taken as fresh until seen otherwise (as
-    the event detector takes them), no clamp, commands allowed."""
+    the event detector takes them), no clamp, commands allowed. The robot's limit is the
+    sensor's unless given."""
     words = np.zeros(LOOP_WORDS, dtype=np.int64)
     words[STALE_NS] = stale_ns
+    words[ROBOT_STALE_NS] = stale_ns if robot_stale_ns is None else robot_stale_ns
     words[SENSOR_WAS_OK] = words[ROBOT_WAS_OK] = 1
     return words
 
@@ -60,10 +63,9 @@ def loop_entry(table: NDArray[np.int64], start_ns: int) -> int:
     sample = view1(table, _NEWEST_SAMPLE, SAMPLE_DTYPE)
     state = view1(table, _NEWEST_SAMPLE + 1, STATE_DTYPE)
     words = view1(table, _NEWEST_SAMPLE + 2, np.int64)
-    stale = words[STALE_NS]
     sample_t, state_t = sample[0].t_ns, state[0].t_ns
-    sensor_ok = sample_t > 0 and start_ns - sample_t <= stale  # 0: nothing received yet
-    robot_ok = state_t > 0 and start_ns - state_t <= stale
+    sensor_ok = sample_t > 0 and start_ns - sample_t <= words[STALE_NS]  # 0: nothing yet
+    robot_ok = state_t > 0 and start_ns - state_t <= words[ROBOT_STALE_NS]
     flags = (SENSOR_OK if sensor_ok else 0) | (ROBOT_OK if robot_ok else 0)
     if start_ns >= words[HOLD_UNTIL_NS]:
         flags |= COMMAND_OK

@@ -1,0 +1,289 @@
+"""The ARCS link's process: AUBO's own client (pyaubo-sdk) talking to the controller.
+
+AUBO's client blocks in its calls while holding the GIL, and runs its RTDE callbacks on threads
+of its own: so it runs here, in a process of its own, never on the loop's thread or under its
+GIL. Shared-memory rings (:mod:`.shared`) carry the loop's joint targets in and the joint
+states and servo calls out; the pipe carries requests ("servo on", "stop") and reports.
+
+Order: connect and log in over JSON-RPC, name the robot, connect and log in to RTDE, subscribe
+the joint-state topic, report ``ready``; on "servo on", enter servo mode (refused unless the
+robot runs with safety mode Normal) and stream ``servoJoint`` every servo period with the
+newest targets; on "servo off" leave servo mode (the states stream on); on "stop", the
+parent's end (EOF) or any fault, leave servo mode and log out.
+A fault (protective or emergency stop seen over RTDE, a refused servoJoint, a lost link) is
+reported once as ``("fault", line)`` and ends the servo stream.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from collections import deque
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+
+from hilrig.rig.arcs.settings import ArcsSettings
+from hilrig.rig.arcs.shared import (
+    EMERGENCY_STOP,
+    ENABLED,
+    FAULT,
+    PROTECTIVE_STOP,
+    STOP,
+    TRACKING,
+    Rings,
+    RingSpecs,
+    newest_row,
+)
+from hilrig.rig.child import report
+from hilrig.robot.limits import AUBO_I5_LIMITS
+
+TOPIC = ("R1_actual_q", "R1_actual_qd", "R1_joint_torque_sensor", "R1_robot_mode", "R1_safety_mode")
+RUNNING = 8  # RobotModeType.Running
+ROBOT_ERROR = 10  # RobotModeType.Error
+NORMAL = 1  # SafetyModeType.Normal
+PROTECTIVE = (5, 6)  # ProtectiveStop, SafeguardStop
+EMERGENCY = (7, 8)  # SystemEmergencyStop, RobotEmergencyStop
+SAFETY_NAMES = {
+    0: "undefined",
+    1: "normal",
+    2: "reduced",
+    3: "recovery",
+    4: "violation",
+    5: "protective stop",
+    6: "safeguard stop",
+    7: "system emergency stop",
+    8: "robot emergency stop",
+    9: "fault",
+}
+STOP_ACC_RAD_S2 = 3.0  # stopJoint's deceleration: the i5's joint acceleration limit
+LOG_LINES = 20  # the client's last log lines kept for an error message
+
+
+class LinkFaultError(Exception):
+    """Why the link ends (one line)."""
+
+
+def _status(robot_mode: int, safety_mode: int, servoing: bool) -> int:
+    status = ENABLED if robot_mode == RUNNING else 0
+    if safety_mode in PROTECTIVE:
+        status |= PROTECTIVE_STOP
+    elif safety_mode in EMERGENCY:
+        status |= EMERGENCY_STOP
+    elif safety_mode != NORMAL or robot_mode == ROBOT_ERROR:
+        status |= FAULT
+    if servoing and status == ENABLED:
+        status |= TRACKING
+    return status
+
+
+class _Link:
+    """The client's side of one controller, in this process."""
+
+    def __init__(self, conn: Connection, settings: ArcsSettings, rings: Rings) -> None:
+        import pyaubo_sdk
+
+        self._sdk = pyaubo_sdk
+        self.conn = conn
+        self.settings = settings
+        self.rings = rings
+        self.log: deque[str] = deque(maxlen=LOG_LINES)
+        self._report_lock = threading.Lock()  # the pipe: this thread and the RTDE callback's
+        self.rpc = pyaubo_sdk.RpcClient()
+        self.rpc.setLogHandler(self._on_log)
+        self.rtde = pyaubo_sdk.RtdeClient()
+        self.rtde.setLogHandler(self._on_log)
+        self.servoing = False
+        self.faulted = ""
+        self.samples = 0
+        self.robot_mode = -1
+        self.safety_mode = 0
+        self._limits = AUBO_I5_LIMITS
+        self._command = np.zeros(1, dtype=rings.commands.spec.dtype)
+
+    def _on_log(self, level: int, filename: str, line: int, message: str) -> None:
+        self.log.append(message.strip())
+
+    def say(self, kind: str, value: object = None) -> None:
+        with self._report_lock:
+            report(self.conn, kind, value)
+
+    def fault(self, line: str) -> None:
+        """Report the first fault once; the servo stream ends at its next period."""
+        if not self.faulted:
+            self.faulted = line
+            self.say("fault", line)
+
+    # -- connecting -------------------------------------------------------------------------
+
+    def connect(self) -> dict[str, Any]:
+        s = self.settings
+        code = self.rpc.connect(s.host, s.rpc_port)
+        if code != 0:
+            raise LinkFaultError(f"JSON-RPC {s.host}:{s.rpc_port}: connect failed (code {code})")
+        code = self.rpc.login(s.user, s.password)
+        if code != 0:
+            raise LinkFaultError(f"JSON-RPC login as {s.user!r} refused (code {code})")
+        names = list(self.rpc.getRobotNames())
+        if not names:
+            raise LinkFaultError("the controller names no robot")
+        robot = self.rpc.getRobotInterface(names[0])
+        self.motion = robot.getMotionControl()
+        self.state = robot.getRobotState()
+        version = int(self.rpc.getSystemInfo().getInterfaceVersionCode())
+        code = self.rtde.connect(s.host, s.rtde_port)
+        if code != 0:
+            raise LinkFaultError(f"RTDE {s.host}:{s.rtde_port}: connect failed (code {code})")
+        code = self.rtde.login(s.user, s.password)
+        if code != 0:
+            raise LinkFaultError(f"RTDE login as {s.user!r} refused (code {code})")
+        topic = self.rtde.setTopic(False, list(TOPIC), s.rtde_rate_hz, 0)
+        if topic < 0:
+            raise LinkFaultError(f"RTDE refused the joint-state topic at {s.rtde_rate_hz:g} Hz")
+        self.rtde.subscribe(topic, self._on_sample)
+        return {
+            "robot": names[0],
+            "interface_version": version,
+            "robot_mode": int(self.state.getRobotModeType()),
+            "safety_mode": int(self.state.getSafetyModeType()),
+        }
+
+    def _on_sample(self, parser: Any) -> None:
+        """One RTDE sample (the client's thread): a joint-state row into the loop's ring."""
+        t_ns = time.monotonic_ns()
+        q, qd, tau = parser.popVectorDouble(), parser.popVectorDouble(), parser.popVectorDouble()
+        robot_mode, safety_mode = int(parser.popRobotModeType()), int(parser.popSafetyModeType())
+        self.samples += 1
+        ring = self.rings.states
+        slot = ring.reserve()
+        if slot is not None:
+            slot["t_ns"], slot["device_t_ns"], slot["seq"] = t_ns, 0, self.samples
+            slot["q"], slot["qd"], slot["tau"] = q, qd, tau
+            slot["status"] = _status(robot_mode, safety_mode, self.servoing)
+            ring.commit()
+        if (robot_mode, safety_mode) != (self.robot_mode, self.safety_mode):
+            self.robot_mode, self.safety_mode = robot_mode, safety_mode
+            if self.servoing and safety_mode != NORMAL:
+                name = SAFETY_NAMES.get(safety_mode, str(safety_mode))
+                self.fault(f"the controller reports {name} (safety mode {safety_mode})")
+            elif self.servoing and robot_mode != RUNNING:
+                self.fault(f"the robot left running (robot mode {robot_mode})")
+
+    # -- servo --------------------------------------------------------------------------------
+
+    def servo_on(self) -> None:
+        """Enter servo mode: only once a fresh state shows the robot running, safety normal."""
+        if self.samples == 0:
+            raise LinkFaultError("no RTDE joint state yet: servo mode not entered")
+        if self.robot_mode != RUNNING or self.safety_mode != NORMAL:
+            name = SAFETY_NAMES.get(self.safety_mode, str(self.safety_mode))
+            raise LinkFaultError(
+                f"servo mode not entered: robot mode {self.robot_mode}, safety {name}"
+            )
+        code = self.motion.setServoMode(True)
+        if code != 0 or not self.motion.isServoModeEnabled():
+            raise LinkFaultError(f"the controller did not enter servo mode (code {code})")
+        self.servoing = True
+
+    def servo_off(self) -> None:
+        """Leave servo mode (quietly: also on a link already lost)."""
+        if self.servoing:
+            self.servoing = False
+            with contextlib.suppress(Exception):
+                self.motion.setServoMode(False)
+
+    def serve(self) -> None:
+        """Stream servoJoint every period until "stop", EOF or a fault; leave servo mode."""
+        s = self.settings
+        period_ns = round(1e9 / s.servo_rate_hz)
+        t_s = s.servo_period_s
+        v = max(self._limits.velocity_max_rad_s)
+        a = max(self._limits.acceleration_max_rad_s2)
+        next_ns = time.monotonic_ns() + period_ns
+        command, commands, servo = self._command, self.rings.commands, self.rings.servo
+        have = False
+        while True:
+            wait_s = max(next_ns - time.monotonic_ns(), 0) / 1e9
+            if self.conn.poll(wait_s) and self._message() == "stop":
+                return
+            next_ns += period_ns
+            if self.faulted or not self.servoing:
+                continue  # holding out of servo mode until the parent stops the session
+            if newest_row(commands.rows, commands.header, command):
+                have = True
+            if not have:
+                continue
+            row = command[0]
+            if int(row["mode"]) == STOP:
+                with contextlib.suppress(Exception):
+                    self.motion.stopJoint(STOP_ACC_RAD_S2)
+                self.servo_off()
+                continue
+            q = row["q"].tolist()
+            sent_ns = time.monotonic_ns()
+            try:
+                code = int(self.motion.servoJoint(q, a, v, t_s, s.lookahead_s, s.gain))
+            except Exception as err:  # the client raises on a lost link or a timeout
+                self.fault(f"servoJoint failed: {err}")
+                code = -1
+            done_ns = time.monotonic_ns()
+            servo.push(sent_ns, done_ns, int(row["source_ns"]), code, int(row["mode"]), q)
+            if code != 0 and not self.faulted:
+                self.fault(f"the controller refused servoJoint (code {code}): not in servo mode")
+            if self.faulted:
+                self.servo_off()
+
+    def _message(self) -> str:
+        try:
+            message = self.conn.recv()
+        except (EOFError, OSError):
+            return "stop"  # the parent is gone
+        if message == "servo on":
+            try:
+                self.servo_on()
+            except LinkFaultError as err:
+                self.say("error-servo", str(err))
+            else:
+                self.say("servo", True)
+        elif message == "servo off":
+            self.servo_off()
+            self.say("servo", False)
+        return str(message)
+
+    def close(self) -> None:
+        self.servo_off()
+        for client in (self.rtde, self.rpc):
+            with contextlib.suppress(Exception):
+                client.logout()
+            with contextlib.suppress(Exception):
+                client.disconnect()
+
+
+def serve(conn: Connection, settings: ArcsSettings, specs: RingSpecs) -> None:
+    """The child's entry (spawned by :class:`~hilrig.rig.arcs.link.ArcsLink`)."""
+    rings = Rings.attach(specs)
+    link: _Link | None = None
+    try:
+        link = _Link(conn, settings, rings)
+        try:
+            info = link.connect()
+        except LinkFaultError as err:
+            report(conn, "error", f"{err}{_last_log(link)}")
+            return
+        except Exception as err:  # the client raises on timeouts and broken replies
+            report(conn, "error", f"{type(err).__name__}: {err}{_last_log(link)}")
+            return
+        link.say("ready", info)
+        link.serve()
+    finally:
+        if link is not None:
+            link.close()
+            link.say("done", {"rtde_samples": link.samples})
+        rings.close()
+
+
+def _last_log(link: _Link) -> str:
+    errors = [line for line in link.log if "error" in line.lower() or "fail" in line.lower()]
+    return f" (client: {errors[-1]})" if errors else ""
