@@ -24,9 +24,7 @@ from hilrig.rig.session_config import SessionConfig
         ({"rpc_port": 0}, "rpc port 0: must be within 1..65535"),
     ],
 )
-def test_values_outside_aubo_s_ranges_are_refused(
-    change: dict[str, float], message: str
-) -> None:
+def test_values_outside_aubo_s_ranges_are_refused(change: dict[str, float], message: str) -> None:
     with pytest.raises(ParameterError) as err:
         ArcsSettings(**change)  # type: ignore[arg-type]
     assert str(err.value).startswith(message)
@@ -43,7 +41,7 @@ def test_the_password_is_read_from_a_file_or_the_environment(
     monkeypatch.delenv(PASSWORD_ENV)
     with pytest.raises(ParameterError, match=f"give --robot-password-file or set {PASSWORD_ENV}"):
         password_from(None)
-    with pytest.raises(ParameterError, match="password file .*missing: No such file"):
+    with pytest.raises(ParameterError, match=r"password file .*missing: No such file"):
         password_from(tmp_path / "missing")
 
 
