@@ -7,7 +7,12 @@ One object owns the pieces, each on the transport the real device uses:
 - the joint-state TCP stream (``EmulatedRobotStateServer``): q, qd and the joint modules'
   torques (scenario plus noise);
 - the Modbus RTU-over-TCP joint-target endpoint (``EmulatedModbusServer``), which feeds the
-  plant's servos.
+  plant's servos;
+- an AUBO ARCS controller (``rig.arcs``, hilrig/emulator/arcs): its JSON-RPC port
+  (``rig.arcs_rpc``: servo mode and servoJoint, which also feed the plant, and the robot's state)
+  and its RTDE port (``rig.arcs_rtde``: topics pushed from the slots), as AUBO's own client
+  (pyaubo-sdk) speaks them; their joint torques are the joint-state stream's (same slot, same
+  noise).
 
 One thread runs them all in a :class:`SlotLoop`: every 1 ms slot advances the plant, computes
 the sensor's pose once, sends the joint-state frame, then the F/T frame (so a reader woken by the
@@ -17,8 +22,8 @@ answers start/stop commands, new clients and Modbus writes as they arrive.
 ``open()`` binds (127.0.0.1, OS-chosen ports unless told otherwise) and returns the endpoints,
 ``run()`` runs the loop in the calling thread until ``request_stop()``, ``close()`` closes the
 devices; ``start()``/``stop()`` (or ``with``) do the same with the loop in a thread of its own.
-Faults are injected on the parts (``rig.ft``, ``rig.robot_state``, ``rig.modbus``) from any
-thread; ``counters()`` says exactly what was sent.
+Faults are injected on the parts (``rig.ft``, ``rig.robot_state``, ``rig.modbus``, ``rig.arcs``)
+from any thread; ``counters()`` says exactly what was sent.
 """
 
 from __future__ import annotations
@@ -33,6 +38,12 @@ from numpy.typing import NDArray
 from hilrig.drivers.ft.gravity import ToolLoad
 from hilrig.drivers.joint_targets.wire import Mode
 from hilrig.drivers.robot_state.wire import FRAME_BYTES, JOINTS, LENGTH, MAGIC
+from hilrig.emulator.arcs import (
+    ArcsConfig,
+    ArcsController,
+    EmulatedArcsRpcServer,
+    EmulatedArcsRtdeServer,
+)
 from hilrig.emulator.frame_kernels import state_frame_into
 from hilrig.emulator.ft_emulator import EmulatorConfig, FtEmulator
 from hilrig.emulator.modbus_server import EmulatedModbusServer
@@ -91,6 +102,9 @@ class RigConfig:
     joint_torque_noise_nm: float = 0.05
     seed: int = 0
     scenario_starts_at_open: bool = True  # False: its clock waits for start_scenario()
+    arcs_rpc_port: int = 0  # the ARCS JSON-RPC port (0: OS-chosen; a real controller's: 30004)
+    arcs_rtde_port: int = 0  # the ARCS RTDE port (0: OS-chosen; a real controller's: 30010)
+    arcs: ArcsConfig = field(default_factory=ArcsConfig)  # users, servo timeout, constants
 
 
 @dataclass(frozen=True)
@@ -112,6 +126,8 @@ class RigCounters:
     slots_late: int  # slots begun a period or more after their deadline
     slots_skipped: int  # slots not run at all (the loop fell more than MAX_BEHIND behind)
     slot_lateness_us: tuple[float, float, float]  # p50, p99, max of slot start - deadline
+    servo_joints: int = 0  # ARCS servoJoint calls accepted and applied to the plant
+    rtde_samples_sent: int = 0  # ARCS RTDE topic messages handed whole to client sockets
 
 
 class EmulatedRig:
@@ -141,6 +157,7 @@ class EmulatedRig:
         self._noise = np.zeros((_NOISE_BLOCK, 6))  # joint torque noise, used last row first
         self._noise_rows = 0
         self._torque = np.zeros(6)  # the scenario's, this slot
+        self._measured = np.zeros(6)  # the joints' torque sensors: scenario plus noise, this slot
         self._state_frame = np.zeros(FRAME_BYTES, dtype=np.uint8)
         self._state_frame[:6] = np.frombuffer(MAGIC + LENGTH.to_bytes(2, "little"), np.uint8)
         self._make_state = bound_kernel(
@@ -151,8 +168,8 @@ class EmulatedRig:
             np.zeros(1, dtype=np.int64),
             q_rad,
             qd_rad_s,
-            self._torque,
-            self._noise,
+            self._measured,
+            np.zeros((1, 6)),  # the noise is in _measured already
             last=(0, 0, 0, 0),
         )
         self._slot_t_s = 0.0
@@ -168,6 +185,20 @@ class EmulatedRig:
             self._state, rate_hz=self.config.rate_hz, host=self.config.host
         )
         self.modbus = EmulatedModbusServer(self._targets, host=self.config.host)
+        limits = self._model.limits
+        self.arcs = ArcsController(
+            self.plant.set_targets,
+            q_rad=q_rad,
+            qd_rad_s=qd_rad_s,
+            torque_nm=self._measured,
+            q_limits_rad=(limits.lower_rad(), limits.upper_rad()),
+            config=self.config.arcs,
+        )
+        host = self.config.host
+        self.arcs_rpc = EmulatedArcsRpcServer(self.arcs, host=host, port=self.config.arcs_rpc_port)
+        self.arcs_rtde = EmulatedArcsRtdeServer(
+            self.arcs, rate_hz=self.config.rate_hz, host=host, port=self.config.arcs_rtde_port
+        )
 
     def open(self) -> RigEndpoints:
         """Bind every device to the loop (not running yet); returns the endpoints."""
@@ -175,7 +206,8 @@ class EmulatedRig:
         if self.config.scenario_starts_at_open:
             self._scenario_t0_ns = self.loop.t0_ns
         self.plant.advance(self.loop.t0_ns)
-        for device in (self.modbus, self.robot_state, self.ft):
+        self.arcs.start(self.loop.t0_ns)
+        for device in (self.modbus, self.arcs_rpc, self.arcs_rtde, self.robot_state, self.ft):
             device.attach(self.loop)
         return self.endpoints
 
@@ -197,6 +229,8 @@ class EmulatedRig:
         self.ft.close()
         self.robot_state.close()
         self.modbus.close()
+        self.arcs_rpc.close()
+        self.arcs_rtde.close()
 
     def start(self) -> RigEndpoints:
         """``open()`` and run the loop in a thread of its own."""
@@ -219,7 +253,11 @@ class EmulatedRig:
     def endpoints(self) -> RigEndpoints:
         host = self.config.host
         return RigEndpoints(
-            str(self.ft.port_path), (host, self.robot_state.port), (host, self.modbus.port)
+            str(self.ft.port_path),
+            (host, self.robot_state.port),
+            (host, self.modbus.port),
+            (host, self.arcs_rpc.port),
+            (host, self.arcs_rtde.port),
         )
 
     def counters(self) -> RigCounters:
@@ -245,6 +283,8 @@ class EmulatedRig:
                 loop.lateness.quantile_us(0.99),
                 loop.lateness.max_ns / 1000,
             ),
+            servo_joints=self.arcs.servo_joints,
+            rtde_samples_sent=self.arcs_rtde.frames_sent,
         )
 
     def _slot(self, slot_ns: int, now_ns: int) -> None:
@@ -252,9 +292,13 @@ class EmulatedRig:
         self._update_pose()
         t0_ns = self._scenario_t0_ns
         self._slot_t_s = 0.0 if t0_ns is None else max(slot_ns - t0_ns, 0) * 1e-9
+        self._measure_torques()
+        self.arcs.tick(slot_ns)
         self.robot_state.tick(slot_ns)
         self.ft.tick(slot_ns)
         self.modbus.tick(slot_ns)
+        self.arcs_rpc.tick(slot_ns)
+        self.arcs_rtde.tick(slot_ns)
 
     def _wrench(self, t_s: float) -> tuple[float, ...]:
         """The sensor's wrench at this slot, on the scenario's clock (``t_s``, the sensor's own
@@ -264,17 +308,22 @@ class EmulatedRig:
     def _targets(self, q_rad: NDArray[np.float64], sequence: int, mode: Mode) -> None:
         self.plant.set_targets(q_rad, sequence, mode, time.monotonic_ns())
 
-    def _state(self, sequence: int) -> bytes:
-        """This slot's joint-state frame: the plant's q and qd, the scenario's joint torques
-        plus noise (one compiled call)."""
+    def _measure_torques(self) -> None:
+        """This slot's joint torque sensors, once for every device: the scenario's joint
+        torques plus one row of noise."""
         if not self._noise_rows:  # in place: normal(0, scale) is scale times the standard draw
             self._rng.standard_normal(out=self._noise)
             self._noise *= self.config.joint_torque_noise_nm
             self._noise_rows = _NOISE_BLOCK
         self._noise_rows -= 1
         self._torque[:] = self.scenario.joint_torque(self._slot_t_s)
+        np.add(self._torque, self._noise[self._noise_rows], out=self._measured)
+
+    def _state(self, sequence: int) -> bytes:
+        """This slot's joint-state frame: the plant's q and qd and the joints' measured torques
+        (one compiled call)."""
         # the emulated controller's clock is this host's monotonic clock (shared by every
         # process here), so a reader can measure the stream's latency from device time
         status = int(self.plant.status())
-        self._make_state(self._noise_rows, sequence, time.monotonic_ns(), status)
+        self._make_state(0, sequence, time.monotonic_ns(), status)
         return self._state_frame.tobytes()

@@ -39,6 +39,14 @@ FAULTS = frozenset(
         "robot_state.drop_links",
         "robot_state.inject",
         "modbus.inject_exceptions",
+        # the emulated AUBO ARCS controller (hilrig/emulator/arcs/controller.py)
+        "arcs.protective_stop",
+        "arcs.emergency_stop",
+        "arcs.drop_links",
+        "arcs.stall_rtde",  # (duration_s,)
+        "arcs.servo_timeout",
+        "arcs.refuse_login",  # (count=1,)
+        "arcs.reset",
     }
 )
 REPLY_TIMEOUT_S = 10.0
