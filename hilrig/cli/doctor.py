@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from hilrig.cli.app import app
+from hilrig.cli.robot_options import PasswordFile, RobotHost, RobotUser, RtdeRate
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -41,6 +42,14 @@ def doctor(
             "e.g. /dev/ttyUSB0): access, driver, a USB adapter's latency timer."
         ),
     ] = None,
+    robot: RobotHost = None,
+    robot_rpc_port: Annotated[
+        int, typer.Option(help="The controller's JSON-RPC port (with --robot).")
+    ] = 30004,
+    robot_rtde_port: Annotated[int, typer.Option(help="Its RTDE port (with --robot).")] = 30010,
+    robot_user: RobotUser = "aubo",
+    robot_password_file: PasswordFile = None,
+    rtde_rate: RtdeRate = 500.0,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print one JSON document instead of the report.")
     ] = False,
@@ -54,6 +63,10 @@ def doctor(
     or note. Then a bare thread under the loop's settings wakes every 1 ms, and 1 kHz messages
     pass through a pty as the F/T sensor's do: what they lose, a session here loses too
     (docs/rig.md). Waits while a session runs.
+
+    With --robot HOST, first the AUBO controller: reachable, login, interface version, robot
+    and safety mode, and the RTDE rate it achieves over 2 s (the arm does not move); exits 1
+    when a session could not start there.
     """
     import json
     import threading
@@ -72,6 +85,19 @@ def doctor(
         raise HilrigError(f"--cpu {cpu}: must be a CPU's number, 0 or more")
     check_cpu(cpu)
     console = Console(highlight=False)
+    controller = None
+    if robot is not None:
+        from hilrig.cli.controller_check import check_robot
+
+        controller = check_robot(
+            console,
+            robot,
+            (robot_rpc_port, robot_rtde_port),
+            robot_user,
+            robot_password_file,
+            rtde_rate,
+            quiet=as_json,
+        )
     settings = read_settings()
     if port is not None:
         settings += port_settings(port)
@@ -90,10 +116,13 @@ def doctor(
         document = {
             "settings": [asdict(setting) for setting in settings],
             "floor": None if floor is None else _floor_record(floor),
+            "controller": None if controller is None else controller,
         }
         typer.echo(json.dumps(document, indent=2))
     elif floor is not None:
         _print_floor(console, floor)
+    if controller is not None and controller["problem"]:
+        raise typer.Exit(1)
 
 
 def _print_settings(console: Console, settings: list[Setting]) -> None:

@@ -11,6 +11,7 @@ from hilrig.drivers.joint_targets.frame import RequestFrame
 from hilrig.drivers.joint_targets.wire import Mode, RegisterMap
 from hilrig.drivers.robot_state.frames import StateFrames
 from hilrig.emulator.rig import HOME_Q_RAD
+from hilrig.rig.arcs.shared import Rings, RingSpecs, newest_row, take_rows
 from hilrig.rig.loop_figures import LoopSummary
 from hilrig.rig.recorder_feed import RecorderFeed
 from hilrig.rig.records import AXES, FT_DTYPE, JOINT_DTYPE
@@ -26,8 +27,9 @@ from hilrig.timing import LatencyHistogram
 def warm_up() -> None:
     """Load (or compile) every kernel the session's thread runs once its devices talk (the
     tick's, the task trajectory's samplers, the drivers' decoders, the Modbus request's, the
-    rings' row stores, the loop's latency histograms) and run them once on a throwaway state
-    built like a session's (rows in shared-memory rings: numba compiles per array type), so
+    rings' row stores, the ARCS link's ring readers, the loop's latency histograms) and run
+    them once on a throwaway state built like a session's (rows in shared-memory rings: numba
+    compiles per array type), so
     that no first-call cost lands between the devices' first bytes and the session's first
     ticks (a fresh clone compiles them all here; ``tests/rig/test_warm_up.py`` checks that
     nothing is left)."""
@@ -62,3 +64,10 @@ def warm_up() -> None:
         del put_row  # it holds the ring's rows, which must be released before unmapping
     finally:
         feed.close()
+    arcs = Rings.create(RingSpecs.unique())  # the ARCS link's rings, read both ways
+    try:
+        for ring in (arcs.states, arcs.servo, arcs.commands):
+            take_rows(ring.rows, ring.header, np.zeros(1, dtype=ring.spec.dtype))
+            newest_row(ring.rows, ring.header, np.zeros(1, dtype=ring.spec.dtype))
+    finally:
+        arcs.close()

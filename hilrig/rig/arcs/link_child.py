@@ -30,6 +30,7 @@ from hilrig.rig.arcs.shared import (
     EMERGENCY_STOP,
     ENABLED,
     FAULT,
+    HOLD,
     PROTECTIVE_STOP,
     STOP,
     TRACKING,
@@ -93,15 +94,19 @@ class _Link:
         self._report_lock = threading.Lock()  # the pipe: this thread and the RTDE callback's
         self.rpc = pyaubo_sdk.RpcClient()
         self.rpc.setLogHandler(self._on_log)
+        # no log handler on the RTDE client: with one, its setTopic returns -1 (pyaubo-sdk
+        # 0.24.1, observed); the RPC client's handler gets its lines too
         self.rtde = pyaubo_sdk.RtdeClient()
-        self.rtde.setLogHandler(self._on_log)
         self.servoing = False
         self.faulted = ""
         self.samples = 0
+        self.last_q: list[float] = []
         self.robot_mode = -1
         self.safety_mode = 0
         self._limits = AUBO_I5_LIMITS
         self._command = np.zeros(1, dtype=rings.commands.spec.dtype)
+        # loaded (or compiled) now, not at the first servo period: the ring is still empty
+        newest_row(rings.commands.rows, rings.commands.header, self._command)
 
     def _on_log(self, level: int, filename: str, line: int, message: str) -> None:
         self.log.append(message.strip())
@@ -156,6 +161,7 @@ class _Link:
         q, qd, tau = parser.popVectorDouble(), parser.popVectorDouble(), parser.popVectorDouble()
         robot_mode, safety_mode = int(parser.popRobotModeType()), int(parser.popSafetyModeType())
         self.samples += 1
+        self.last_q = q
         ring = self.rings.states
         slot = ring.reserve()
         if slot is not None:
@@ -185,6 +191,10 @@ class _Link:
         code = self.motion.setServoMode(True)
         if code != 0 or not self.motion.isServoModeEnabled():
             raise LinkFaultError(f"the controller did not enter servo mode (code {code})")
+        # until the loop's first targets: hold where the arm is (a controller in servo mode
+        # that gets no point leaves it)
+        self._command[0]["mode"], self._command[0]["source_ns"] = HOLD, 0
+        self._command[0]["q"] = self.last_q
         self.servoing = True
 
     def servo_off(self) -> None:
@@ -203,7 +213,6 @@ class _Link:
         a = max(self._limits.acceleration_max_rad_s2)
         next_ns = time.monotonic_ns() + period_ns
         command, commands, servo = self._command, self.rings.commands, self.rings.servo
-        have = False
         while True:
             wait_s = max(next_ns - time.monotonic_ns(), 0) / 1e9
             if self.conn.poll(wait_s) and self._message() == "stop":
@@ -211,10 +220,7 @@ class _Link:
             next_ns += period_ns
             if self.faulted or not self.servoing:
                 continue  # holding out of servo mode until the parent stops the session
-            if newest_row(commands.rows, commands.header, command):
-                have = True
-            if not have:
-                continue
+            newest_row(commands.rows, commands.header, command)
             row = command[0]
             if int(row["mode"]) == STOP:
                 with contextlib.suppress(Exception):
@@ -285,5 +291,9 @@ def serve(conn: Connection, settings: ArcsSettings, specs: RingSpecs) -> None:
 
 
 def _last_log(link: _Link) -> str:
-    errors = [line for line in link.log if "error" in line.lower() or "fail" in line.lower()]
+    errors = [
+        line
+        for line in link.log
+        if ("error" in line.lower() or "fail" in line.lower()) and "__login__" not in line
+    ]
     return f" (client: {errors[-1]})" if errors else ""
