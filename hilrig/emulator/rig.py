@@ -128,6 +128,7 @@ class RigCounters:
     slot_lateness_us: tuple[float, float, float]  # p50, p99, max of slot start - deadline
     servo_joints: int = 0  # ARCS servoJoint calls accepted and applied to the plant
     rtde_samples_sent: int = 0  # ARCS RTDE topic messages handed whole to client sockets
+    servo_mode: bool = False  # the ARCS controller is in servo mode now
 
 
 class EmulatedRig:
@@ -285,6 +286,7 @@ class EmulatedRig:
             ),
             servo_joints=self.arcs.servo_joints,
             rtde_samples_sent=self.arcs_rtde.frames_sent,
+            servo_mode=self.arcs.servo_mode,
         )
 
     def _slot(self, slot_ns: int, now_ns: int) -> None:
