@@ -1,5 +1,7 @@
 """``hilrig rig serve``: the emulated rig as its own process, until Ctrl-C or SIGTERM."""
 
+from __future__ import annotations
+
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -54,7 +56,8 @@ def serve(
     wrist F/T sensor; print their endpoints; stop on Ctrl-C.
 
     The rig's slot loop runs in this process's main thread (real-time priority where permitted).
-    Its controller's user is aubo, password 123456 (as a new AUBO controller's).
+    Its controller's user is aubo, password 123456 (as a new AUBO controller's). The
+    volunteer's clock starts when a client first enters servo mode (a session's start).
     """
     import math
     import signal
@@ -73,7 +76,14 @@ def serve(
         check_port_folder(port_path)
     # endpoint lines: never wrapped, a path shown as it is (no markup)
     console = Console(soft_wrap=True, highlight=False, markup=False, stderr=as_json)
-    config = RigConfig(rate_hz=rate_hz, seed=seed)
+    # the volunteer's clock starts with a session's servo mode, as it does with a session's
+    # own rig: its collision comes at the same time into the session
+    config = RigConfig(
+        rate_hz=rate_hz,
+        seed=seed,
+        scenario_starts_at_open=False,
+        scenario_starts_with_servo=True,
+    )
     rig = EmulatedRig(volunteer_model, config=config, port_path=port_path)
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: rig.request_stop())

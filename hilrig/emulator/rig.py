@@ -102,6 +102,9 @@ class RigConfig:
     joint_torque_noise_nm: float = 0.05
     seed: int = 0
     scenario_starts_at_open: bool = True  # False: its clock waits for start_scenario()
+    # True: a clock that waits starts when an ARCS client first enters servo mode (a session
+    # on a rig served alone, ``hilrig rig serve``, meets its volunteer on the session's clock)
+    scenario_starts_with_servo: bool = False
     arcs_rpc_port: int = 0  # the ARCS JSON-RPC port (0: OS-chosen; a real controller's: 30004)
     arcs_rtde_port: int = 0  # the ARCS RTDE port (0: OS-chosen; a real controller's: 30010)
     arcs: ArcsConfig = field(default_factory=ArcsConfig)  # users, servo timeout, constants
@@ -188,7 +191,7 @@ class EmulatedRig:
         self.modbus = EmulatedModbusServer(self._targets, host=self.config.host)
         limits = self._model.limits
         self.arcs = ArcsController(
-            self.plant.set_targets,
+            self._arcs_targets,
             q_rad=q_rad,
             qd_rad_s=qd_rad_s,
             torque_nm=self._measured,
@@ -306,6 +309,19 @@ class EmulatedRig:
         """The sensor's wrench at this slot, on the scenario's clock (``t_s``, the sensor's own
         time since the loop opened, runs ahead of it until the session's first tick)."""
         return self.scenario.wrench_in_sensor(self._slot_t_s, self._pose)
+
+    def _arcs_targets(
+        self, q_rad: NDArray[np.float64], sequence: int, mode: Mode, now_ns: int
+    ) -> None:
+        """The ARCS controller's targets to the plant; servo mode's first start may start the
+        scenario's clock (``scenario_starts_with_servo``)."""
+        if (
+            self._scenario_t0_ns is None
+            and self.config.scenario_starts_with_servo
+            and self.arcs.servo_mode
+        ):
+            self._scenario_t0_ns = now_ns
+        self.plant.set_targets(q_rad, sequence, mode, now_ns)
 
     def _targets(self, q_rad: NDArray[np.float64], sequence: int, mode: Mode) -> None:
         self.plant.set_targets(q_rad, sequence, mode, time.monotonic_ns())
