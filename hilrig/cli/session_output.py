@@ -205,6 +205,7 @@ def print_result(console: Console, result: SessionResult) -> None:
         f"  sensor to command acknowledged p50 {ack['p50']:.0f} us, p99 {ack['p99']:.0f} us",
         f"  {written} messages written, {result.drops} dropped; {len(result.events)} events",
     ]
+    lines += _robot_link_lines(result.robot_link)
     if result.ended_by:
         lines.append(f"  ended early: {result.ended_by}; the robot was held")
     if result.recorder_error:
@@ -212,9 +213,9 @@ def print_result(console: Console, result: SessionResult) -> None:
     rig = result.rig_counters
     if rig is not None:
         p50, p99, _ = rig.slot_lateness_us
+        states = rig.rtde_samples_sent or rig.joint_frames_sent
         lines += [
-            f"  emulated rig: {rig.ft_frames_sent} F/T frames, {rig.joint_frames_sent} joint "
-            "states sent",
+            f"  emulated rig: {rig.ft_frames_sent} F/T frames, {states} joint states sent",
             f"  emulated rig's own slots late p50 {p50:.0f} us, p99 {p99:.0f} us",
             # a stop of the rig over the staleness limit holds the robot: the rig's, not the loop's
             f"  emulated rig's slots skipped after stops of over {MAX_BEHIND} slots: "
@@ -226,3 +227,18 @@ def print_result(console: Console, result: SessionResult) -> None:
         lines.append(line + (f"; {view.problem}" if view.problem else ""))
     for line in lines:
         console.print(line, markup=False, highlight=False)
+
+
+def _robot_link_lines(link: dict[str, object]) -> list[str]:
+    """The ARCS link's servo stream and joint states (none for the Modbus pair)."""
+    if link.get("robot_link") != "arcs" or "servo_calls" not in link:
+        return []
+    calls, missed = link["servo_calls"], link["servo_periods_missed"]
+    late = link["servo_lateness_us"]
+    assert isinstance(calls, int) and isinstance(missed, int) and isinstance(late, tuple | list)
+    share = 100 * missed / max(calls + missed, 1)
+    return [
+        f"  servoJoint: {calls} calls at {link['servo_rate_hz']} Hz, {missed} periods missed "
+        f"({share:.3f} %), late p99 {late[1]:.0f} us",
+        f"  RTDE: {link['rtde_samples']} joint states at {link['rtde_rate_hz']} Hz",
+    ]

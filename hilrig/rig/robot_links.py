@@ -34,7 +34,8 @@ class RobotLink:
     and ``disarm()`` ends that (the states stream on; the link's close does it too);
     ``fault_fd`` is readable when ``fault()`` may have a reason to end the session (-1: never);
     ``state_period_ns`` is how often a joint state comes (the loop's staleness follows it);
-    ``describe`` is what the session's record says of the link.
+    ``describe`` is what the session's record says of the link, ``figures()`` what the link
+    did (read once it is closed).
     """
 
     states: JointStateSource
@@ -45,6 +46,7 @@ class RobotLink:
     fault_fd: int
     state_period_ns: int
     describe: dict[str, object]
+    figures: Callable[[], dict[str, object]]
 
 
 def open_robot_link(
@@ -90,6 +92,7 @@ def _arcs(stack: ExitStack, endpoints: RigEndpoints, settings: ArcsSettings) -> 
             "rtde_rate_hz": settings.rtde_rate_hz,
             **{f"arcs_{key}": value for key, value in info.items()},
         },
+        lambda: link.figures,
     )
 
 
@@ -115,4 +118,5 @@ def _modbus(stack: ExitStack, endpoints: RigEndpoints) -> RobotLink:
         -1,
         MODBUS_STATE_PERIOD_NS,
         {"robot_link": RobotLinkKind.MODBUS.value},
+        dict,
     )

@@ -26,7 +26,7 @@ import threading
 import time
 from collections.abc import Callable
 from contextlib import ExitStack
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -82,6 +82,7 @@ class SessionResult:
     view: LiveReportLike | None = None
     rig_counters: RigCounters | None = None  # what the emulated rig sent (None: a real rig)
     ended_by: str = ""  # why the session ended before its time, e.g. the recorder died
+    robot_link: dict[str, object] = field(default_factory=dict)  # which, and what it did
 
 
 def record_session(
@@ -242,6 +243,7 @@ def record_session(
         view,
         counters,
         loop.ended_by,
+        {**link.describe, **link.figures()},
     )
 
 

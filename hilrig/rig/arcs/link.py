@@ -45,7 +45,7 @@ class ArcsLink:
         self._specs = specs
         self.rings = Rings.create(specs)
         self.info: dict[str, object] = {}
-        self.rtde_samples = 0
+        self.figures: dict[str, object] = {}  # what the link did, once stopped
         self._fault = ""
 
     def start(self) -> dict[str, object]:
@@ -105,7 +105,7 @@ class ArcsLink:
                 while self._child.poll(STOP_TIMEOUT_S):
                     kind, value = self._receive()
                     if kind == "done" and isinstance(value, dict):
-                        self.rtde_samples = int(value.get("rtde_samples", 0))
+                        self.figures = value
                         break
                     if kind == "fault" and value == self._fault:
                         break

@@ -17,9 +17,11 @@ reported once as ``("fault", line)`` and ends the servo stream.
 from __future__ import annotations
 
 import contextlib
+import os
 import threading
 import time
 from collections import deque
+from collections.abc import Iterator
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -40,6 +42,7 @@ from hilrig.rig.arcs.shared import (
 )
 from hilrig.rig.child import report
 from hilrig.robot.limits import AUBO_I5_LIMITS
+from hilrig.timing import LatencyHistogram
 
 TOPIC = ("R1_actual_q", "R1_actual_qd", "R1_joint_torque_sensor", "R1_robot_mode", "R1_safety_mode")
 RUNNING = 8  # RobotModeType.Running
@@ -94,12 +97,14 @@ class _Link:
         self._report_lock = threading.Lock()  # the pipe: this thread and the RTDE callback's
         self.rpc = pyaubo_sdk.RpcClient()
         self.rpc.setLogHandler(self._on_log)
-        # no log handler on the RTDE client: with one, its setTopic returns -1 (pyaubo-sdk
-        # 0.24.1, observed); the RPC client's handler gets its lines too
         self.rtde = pyaubo_sdk.RtdeClient()
         self.servoing = False
         self.faulted = ""
         self.samples = 0
+        self.servo_calls = 0
+        self.servo_missed = 0
+        self.servo_lateness = LatencyHistogram()
+        LatencyHistogram().add(0)  # its kernel loaded now, not at the first servo period
         self.last_q: list[float] = []
         self.robot_mode = -1
         self.safety_mode = 0
@@ -138,22 +143,33 @@ class _Link:
         self.motion = robot.getMotionControl()
         self.state = robot.getRobotState()
         version = int(self.rpc.getSystemInfo().getInterfaceVersionCode())
-        code = self.rtde.connect(s.host, s.rtde_port)
-        if code != 0:
-            raise LinkFaultError(f"RTDE {s.host}:{s.rtde_port}: connect failed (code {code})")
-        code = self.rtde.login(s.user, s.password)
-        if code != 0:
-            raise LinkFaultError(f"RTDE login as {s.user!r} refused (code {code})")
-        topic = self.rtde.setTopic(False, list(TOPIC), s.rtde_rate_hz, 0)
+        with _stderr_muted():  # the RTDE client logs there until it has a handler
+            topic = self._subscribe()
         if topic < 0:
             raise LinkFaultError(f"RTDE refused the joint-state topic at {s.rtde_rate_hz:g} Hz")
-        self.rtde.subscribe(topic, self._on_sample)
         return {
             "robot": names[0],
             "interface_version": version,
             "robot_mode": int(self.state.getRobotModeType()),
             "safety_mode": int(self.state.getSafetyModeType()),
         }
+
+    def _subscribe(self) -> int:
+        """Connect and log in to RTDE, subscribe the joint-state topic; its channel (< 0: the
+        topic was refused). The log handler comes last: set before ``setTopic``, it makes
+        ``setTopic`` return -1 (pyaubo-sdk 0.24.1, observed)."""
+        s = self.settings
+        code = self.rtde.connect(s.host, s.rtde_port)
+        if code != 0:
+            raise LinkFaultError(f"RTDE {s.host}:{s.rtde_port}: connect failed (code {code})")
+        code = self.rtde.login(s.user, s.password)
+        if code != 0:
+            raise LinkFaultError(f"RTDE login as {s.user!r} refused (code {code})")
+        topic = int(self.rtde.setTopic(False, list(TOPIC), s.rtde_rate_hz, 0))
+        if topic >= 0:
+            self.rtde.subscribe(topic, self._on_sample)
+        self.rtde.setLogHandler(self._on_log)
+        return topic
 
     def _on_sample(self, parser: Any) -> None:
         """One RTDE sample (the client's thread): a joint-state row into the loop's ring."""
@@ -205,7 +221,10 @@ class _Link:
                 self.motion.setServoMode(False)
 
     def serve(self) -> None:
-        """Stream servoJoint every period until "stop", EOF or a fault; leave servo mode."""
+        """Stream servoJoint every period until "stop", EOF or a fault; leave servo mode.
+
+        Calls sit on a grid of periods; one that leaves more than a period after its period
+        began is a missed period (counted), and a grid fallen further behind skips ahead."""
         s = self.settings
         period_ns = round(1e9 / s.servo_rate_hz)
         t_s = s.servo_period_s
@@ -214,12 +233,19 @@ class _Link:
         next_ns = time.monotonic_ns() + period_ns
         command, commands, servo = self._command, self.rings.commands, self.rings.servo
         while True:
-            wait_s = max(next_ns - time.monotonic_ns(), 0) / 1e9
-            if self.conn.poll(wait_s) and self._message() == "stop":
-                return
-            next_ns += period_ns
+            wait_ns = next_ns - time.monotonic_ns()
+            if self.conn.poll(max(wait_ns, 0) / 1e9):
+                if self._message() == "stop":
+                    return
+                continue  # a request came before the period: wait on for it
+            nominal_ns, next_ns = next_ns, next_ns + period_ns
             if self.faulted or not self.servoing:
                 continue  # holding out of servo mode until the parent stops the session
+            behind = (time.monotonic_ns() - nominal_ns) // period_ns
+            if behind > 0:  # whole periods passed without a call: missed, and skipped
+                self.servo_missed += behind
+                nominal_ns += behind * period_ns
+                next_ns = nominal_ns + period_ns
             newest_row(commands.rows, commands.header, command)
             row = command[0]
             if int(row["mode"]) == STOP:
@@ -229,17 +255,30 @@ class _Link:
                 continue
             q = row["q"].tolist()
             sent_ns = time.monotonic_ns()
+            self.servo_lateness.add(sent_ns - nominal_ns)
             try:
                 code = int(self.motion.servoJoint(q, a, v, t_s, s.lookahead_s, s.gain))
             except Exception as err:  # the client raises on a lost link or a timeout
                 self.fault(f"servoJoint failed: {err}")
                 code = -1
             done_ns = time.monotonic_ns()
+            self.servo_calls += 1
             servo.push(sent_ns, done_ns, int(row["source_ns"]), code, int(row["mode"]), q)
             if code != 0 and not self.faulted:
                 self.fault(f"the controller refused servoJoint (code {code}): not in servo mode")
             if self.faulted:
                 self.servo_off()
+
+    def figures(self) -> dict[str, object]:
+        """What the link did: RTDE samples, servoJoint calls, missed servo periods and the
+        calls' lateness after their period's start (p50, p99, max in us)."""
+        late = self.servo_lateness
+        return {
+            "rtde_samples": self.samples,
+            "servo_calls": self.servo_calls,
+            "servo_periods_missed": self.servo_missed,
+            "servo_lateness_us": (late.quantile_us(0.5), late.quantile_us(0.99), late.max_ns / 1e3),
+        }
 
     def _message(self) -> str:
         try:
@@ -286,7 +325,7 @@ def serve(conn: Connection, settings: ArcsSettings, specs: RingSpecs) -> None:
     finally:
         if link is not None:
             link.close()
-            link.say("done", {"rtde_samples": link.samples})
+            link.say("done", link.figures())
         rings.close()
 
 
@@ -297,3 +336,17 @@ def _last_log(link: _Link) -> str:
         if ("error" in line.lower() or "fail" in line.lower()) and "__login__" not in line
     ]
     return f" (client: {errors[-1]})" if errors else ""
+
+
+@contextlib.contextmanager
+def _stderr_muted() -> Iterator[None]:
+    """This process's standard error (the descriptor: C++ writes there too) to /dev/null."""
+    saved = os.dup(2)
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
