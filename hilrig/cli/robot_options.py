@@ -85,17 +85,18 @@ def real_endpoints(settings: RigFile, host: str | None) -> RigEndpoints:
     from dataclasses import replace
 
     from hilrig.errors import HilrigError
+    from hilrig.rig.arcs.settings import RPC_PORT, RTDE_PORT
 
     endpoints = settings.endpoints
     if endpoints is None:
         raise HilrigError(
             "--rig aubo needs --config with [endpoints] ft_wrist_port (and [robot] or --robot)"
         )
-    if host is not None:
+    if host is not None:  # the config's ports, else the controller's own
         endpoints = replace(
             endpoints,
-            aubo_rpc=(host, endpoints.aubo_rpc[1]),
-            aubo_rtde=(host, endpoints.aubo_rtde[1]),
+            aubo_rpc=(host, endpoints.aubo_rpc[1] or RPC_PORT),
+            aubo_rtde=(host, endpoints.aubo_rtde[1] or RTDE_PORT),
         )
     if not endpoints.aubo_rpc[0]:
         raise HilrigError("--rig aubo: no controller: give --robot HOST or [robot] host")

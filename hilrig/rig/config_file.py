@@ -94,17 +94,28 @@ def _check_trajectory(path: Path, name: str, options: dict[str, object]) -> None
 
 def _endpoints(path: Path, table: Any, robot: dict[str, object]) -> RigEndpoints:
     try:
-        if "password" in robot:
-            raise ValueError("a password has no place in a config file")
-        return RigEndpoints(
-            str(table["ft_wrist_port"]),
-            _host_port(table.get("robot_state")),
-            _host_port(table.get("modbus")),
-            (str(robot.get("host", "")), int(str(robot.get("rpc_port", RPC_PORT)))),
-            (str(robot.get("host", "")), int(str(robot.get("rtde_port", RTDE_PORT)))),
-        )
+        ft_wrist_port = str(table["ft_wrist_port"])
+        robot_state, modbus = _host_port(table.get("robot_state")), _host_port(table.get("modbus"))
     except (KeyError, ValueError, TypeError, AttributeError) as err:
-        raise HilrigError(f"{path}: no valid [endpoints] and [robot] tables ({err})") from err
+        raise HilrigError(f"{path}: no valid [endpoints] table ({err})") from err
+    if "password" in robot:
+        raise HilrigError(f"{path}: [robot] password: a password has no place in a config file")
+    try:
+        host = str(robot.get("host", ""))
+        rpc_port, rtde_port = (int(str(robot.get(k, d))) for k, d in _PORTS)
+    except ValueError as err:
+        raise HilrigError(f"{path}: no valid [robot] table ({err})") from err
+    no_host = not host  # no controller named: its ports wait for --robot HOST
+    return RigEndpoints(
+        ft_wrist_port,
+        robot_state,
+        modbus,
+        ("", 0) if no_host else (host, rpc_port),
+        ("", 0) if no_host else (host, rtde_port),
+    )
+
+
+_PORTS = (("rpc_port", RPC_PORT), ("rtde_port", RTDE_PORT))
 
 
 def _host_port(value: object) -> tuple[str, int]:

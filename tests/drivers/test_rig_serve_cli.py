@@ -26,10 +26,18 @@ def test_rig_serve_prints_endpoints_that_work_and_stops_cleanly(tmp_path: Path) 
     )
     try:
         assert server.stdout is not None
-        lines = [server.stdout.readline() for _ in range(5)]
+        lines = [server.stdout.readline() for _ in range(7)]
         assert lines[0].startswith("emulated rig running, scenario paper-body, 1000 Hz")
         assert lines[1].strip() == f"wrist F/T sensor (Kunwei, 460800 8N1): {tmp_path / 'ft'}"
-        host, port = lines[2].rsplit(": ", 1)[1].strip().rsplit(":", 1)
+        labels = [line.strip().rsplit(": ", 1)[0] for line in lines[2:6]]
+        assert labels == [
+            "AUBO ARCS JSON-RPC (TCP)",
+            "AUBO ARCS RTDE (TCP)",
+            "robot joint state (TCP)",
+            "joint targets (Modbus RTU over TCP)",
+        ]
+        assert lines[6].strip() == "Ctrl-C to stop"
+        host, port = lines[4].rsplit(": ", 1)[1].strip().rsplit(":", 1)
         assert host == "127.0.0.1"
         decoder = RobotStateDecoder()
         with socket.create_connection((host, int(port)), timeout=10) as stream:

@@ -26,6 +26,7 @@ from hilrig.rig import (
     SessionResult,
     record_session,
 )
+from hilrig.rig.kinds import RobotLinkKind
 from hilrig.rig.session_config import machine_json
 
 TOPICS_AT_1KHZ = (
@@ -47,6 +48,7 @@ def run(
     scenario: str = "paper-end-effector",
     during: Callable[[RigProcess, ControlLoop, threading.Event], None] | None = None,
     recorders: list[RecorderProcess] | None = None,
+    robot_link: RobotLinkKind = RobotLinkKind.ARCS,
 ) -> SessionResult:
     """Record a session; ``during`` runs in a thread once the loop has started."""
     rig_box: list[RigProcess] = []
@@ -57,7 +59,13 @@ def run(
             threading.Thread(target=during, args=(rig_box[0], loop, stop), daemon=True).start()
 
     return record_session(
-        SessionConfig(out=tmp / name, subject_id="S001", scenario=scenario, duration_s=seconds),
+        SessionConfig(
+            out=tmp / name,
+            subject_id="S001",
+            scenario=scenario,
+            duration_s=seconds,
+            robot_link=robot_link,
+        ),
         stop=stop,
         on_start=on_start,
         rig_ready=rig_box.append,
@@ -80,9 +88,10 @@ def test_every_frame_the_rig_sent_and_every_tick_is_recorded(collision: SessionR
     ft, joints = frames["/ft/wrist"], frames["/joint_states"]
     assert counters.ft_frames_dropped == 0
     assert 0 < len(ft) <= counters.ft_frames_sent <= len(ft) + collision.drops
-    assert 0 < len(joints) <= counters.joint_frames_sent <= len(joints) + collision.drops
+    # the joint states came over RTDE (the ARCS link, the default)
+    assert 0 < len(joints) <= counters.rtde_samples_sent <= len(joints) + collision.drops
     if collision.drops == 0:
-        assert (len(ft), len(joints)) == (counters.ft_frames_sent, counters.joint_frames_sent)
+        assert (len(ft), len(joints)) == (counters.ft_frames_sent, counters.rtde_samples_sent)
     ticks = frames["/diagnostics/loop"]
     logged = ticks["tick"].to_numpy()
     assert np.all(np.diff(logged) >= 1) and len(logged) + collision.drops >= collision.summary.ticks
@@ -137,7 +146,15 @@ def test_faults_hold_the_robot_and_are_logged_while_the_loop_keeps_ticking(
             time.sleep(0.001)
         stop.set()
 
-    result = run(tmp_path, "faults.mcap", 60.0, scenario="paper-body", during=inject)
+    # the Modbus pair's faults (the ARCS link's: tests/rig/arcs/test_arcs_sessions.py)
+    result = run(
+        tmp_path,
+        "faults.mcap",
+        60.0,
+        scenario="paper-body",
+        during=inject,
+        robot_link=RobotLinkKind.MODBUS,
+    )
     faults = [e for e in result.events if e.kind == EventKind.FAULT]
     sources = [e.source for e in faults]
     assert "wrist F/T sensor" in sources

@@ -44,7 +44,15 @@ from hilrig.rig.child import report
 from hilrig.robot.limits import AUBO_I5_LIMITS
 from hilrig.timing import LatencyHistogram
 
-TOPIC = ("R1_actual_q", "R1_actual_qd", "R1_joint_torque_sensor", "R1_robot_mode", "R1_safety_mode")
+# the controller's clock (s since it started) first: replay aligns the states on it
+TOPIC = (
+    "timestamp",
+    "R1_actual_q",
+    "R1_actual_qd",
+    "R1_joint_torque_sensor",
+    "R1_robot_mode",
+    "R1_safety_mode",
+)
 RUNNING = 8  # RobotModeType.Running
 ROBOT_ERROR = 10  # RobotModeType.Error
 NORMAL = 1  # SafetyModeType.Normal
@@ -174,6 +182,7 @@ class _Link:
     def _on_sample(self, parser: Any) -> None:
         """One RTDE sample (the client's thread): a joint-state row into the loop's ring."""
         t_ns = time.monotonic_ns()
+        device_t_ns = round(parser.popDouble() * 1e9)
         q, qd, tau = parser.popVectorDouble(), parser.popVectorDouble(), parser.popVectorDouble()
         robot_mode, safety_mode = int(parser.popRobotModeType()), int(parser.popSafetyModeType())
         self.samples += 1
@@ -181,7 +190,7 @@ class _Link:
         ring = self.rings.states
         slot = ring.reserve()
         if slot is not None:
-            slot["t_ns"], slot["device_t_ns"], slot["seq"] = t_ns, 0, self.samples
+            slot["t_ns"], slot["device_t_ns"], slot["seq"] = t_ns, device_t_ns, self.samples
             slot["q"], slot["qd"], slot["tau"] = q, qd, tau
             slot["status"] = _status(robot_mode, safety_mode, self.servoing)
             ring.commit()

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from hilrig.errors import ParameterError
+from hilrig.cli.robot_options import real_endpoints
+from hilrig.errors import HilrigError, ParameterError
 from hilrig.rig.arcs.settings import PASSWORD_ENV, ArcsSettings, password_from
 from hilrig.rig.config_file import read_rig_file
 from hilrig.rig.session_config import SessionConfig
@@ -70,5 +71,9 @@ def test_a_config_file_names_the_controller_and_refuses_a_password(tmp_path: Pat
     path.write_text(
         '[endpoints]\nft_wrist_port = "/dev/ttyUSB0"\n[robot]\nhost = "h"\npassword = "x"\n'
     )
-    with pytest.raises(Exception, match="a password has no place in a config file"):
+    with pytest.raises(HilrigError, match=r"\[robot\] password: a password has no place in a"):
         read_rig_file(path)
+    path.write_text('[endpoints]\nft_wrist_port = "/dev/ttyUSB0"\n')
+    endpoints = read_rig_file(path).endpoints
+    assert endpoints is not None and endpoints.aubo_rpc == ("", 0)  # --robot HOST names it
+    assert real_endpoints(read_rig_file(path), "10.0.0.9").aubo_rtde == ("10.0.0.9", 30010)
