@@ -8,12 +8,17 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from hilrig.analysis import analyze, load_session
+from hilrig.emulator.arcs import ArcsConfig
+from hilrig.emulator.rig import RigConfig
+from hilrig.rig import RigProcess
+from hilrig.rig.machine_lock import WAITING
 
 HILRIG = Path(sys.executable).with_name("hilrig")
 SESSION_S = "7"  # the paper's end-effector collision comes 4 s to 6 s into a session
@@ -110,3 +115,51 @@ def test_a_session_on_the_served_rig_meets_the_default_s_collision(
         assert a.peak == pytest.approx(b.peak, rel=0.05)
     assert [v.verdict for v in on_aubo.verdicts] == [v.verdict for v in on_default.verdicts]
     assert on_aubo.verdicts
+
+
+def test_a_killed_session_leaves_servo_mode(tmp_path: Path) -> None:
+    """SIGKILL of ``hilrig record``: its link's process sees its pipe close and leaves servo
+    mode itself (the controller here never ends servo mode on its own)."""
+    config = RigConfig(
+        scenario_starts_at_open=False,
+        scenario_starts_with_servo=True,
+        arcs=ArcsConfig(servo_timeout_s=3600.0),
+    )
+    rig = RigProcess("paper-end-effector", config=config)
+    endpoints = rig.start()
+    try:
+        served = {
+            "ft_wrist_port": endpoints.ft_wrist_port,
+            "aubo_rpc": ":".join(map(str, endpoints.aubo_rpc)),
+            "aubo_rtde": ":".join(map(str, endpoints.aubo_rtde)),
+        }
+        args = ("record", "--rig", "aubo", "--config", str(_config(tmp_path, served)))
+        process = subprocess.Popen(
+            [str(HILRIG), *args, "--subject", "S001", "--out", str(tmp_path / "k.mcap")],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "HILRIG_AUBO_PASSWORD": "123456"},
+        )
+        try:
+            assert "session started at the start pose" in first_line(process)
+            assert rig.counters().servo_mode is True
+        finally:
+            process.kill()
+        process.wait(timeout=60)
+        for _ in range(600):  # the link's process notices the closed pipe within its period
+            if not rig.counters().servo_mode:
+                break
+            time.sleep(0.05)
+        assert rig.counters().servo_mode is False
+    finally:
+        rig.stop()
+
+
+def first_line(process: subprocess.Popen[str]) -> str:
+    """The first line ``process`` printed on stderr but for its waiting for the machine."""
+    assert process.stderr is not None
+    line = process.stderr.readline()
+    while line.startswith(f"waiting: {WAITING}"):
+        line = process.stderr.readline()
+    return line
