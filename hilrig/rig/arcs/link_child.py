@@ -138,12 +138,7 @@ class _Link:
 
     def connect(self) -> dict[str, Any]:
         s = self.settings
-        code = self.rpc.connect(s.host, s.rpc_port)
-        if code != 0:
-            raise LinkFaultError(f"JSON-RPC {s.host}:{s.rpc_port}: connect failed (code {code})")
-        code = self.rpc.login(s.user, s.password)
-        if code != 0:
-            raise LinkFaultError(f"JSON-RPC login as {s.user!r} refused (code {code})")
+        _log_in(self.rpc, "JSON-RPC", s.rpc_port, s)
         names = list(self.rpc.getRobotNames())
         if not names:
             raise LinkFaultError("the controller names no robot")
@@ -167,12 +162,7 @@ class _Link:
         topic was refused). The log handler comes last: set before ``setTopic``, it makes
         ``setTopic`` return -1 (pyaubo-sdk 0.24.1, observed)."""
         s = self.settings
-        code = self.rtde.connect(s.host, s.rtde_port)
-        if code != 0:
-            raise LinkFaultError(f"RTDE {s.host}:{s.rtde_port}: connect failed (code {code})")
-        code = self.rtde.login(s.user, s.password)
-        if code != 0:
-            raise LinkFaultError(f"RTDE login as {s.user!r} refused (code {code})")
+        _log_in(self.rtde, "RTDE", s.rtde_port, s)
         topic = int(self.rtde.setTopic(False, list(TOPIC), s.rtde_rate_hz, 0))
         if topic >= 0:
             self.rtde.subscribe(topic, self._on_sample)
@@ -313,6 +303,17 @@ class _Link:
                 client.logout()
             with contextlib.suppress(Exception):
                 client.disconnect()
+
+
+def _log_in(client: Any, what: str, port: int, s: ArcsSettings) -> None:
+    """Connect ``client`` (AUBO's RpcClient or RtdeClient) and log in; LinkFaultError says
+    which step failed, with the client's code."""
+    code = client.connect(s.host, port)
+    if code != 0:
+        raise LinkFaultError(f"{what} {s.host}:{port}: connect failed (code {code})")
+    code = client.login(s.user, s.password)
+    if code != 0:
+        raise LinkFaultError(f"{what} login as {s.user!r} refused (code {code})")
 
 
 def serve(conn: Connection, settings: ArcsSettings, specs: RingSpecs) -> None:

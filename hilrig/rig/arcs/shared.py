@@ -15,6 +15,7 @@ thread allocates nothing per tick to read them.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -82,23 +83,22 @@ class Rings:
 
     @classmethod
     def create(cls, specs: RingSpecs) -> Rings:
-        made: list[Ring] = []
-        try:
-            for spec in (specs.commands, specs.states, specs.servo):
-                made.append(Ring.create(spec))
-        except BaseException:
-            _release(made, unlink=True)
-            raise
-        return cls(*made)
+        """Make the three rings (this process owns them)."""
+        return cls._open(specs, Ring.create, owner=True)
 
     @classmethod
     def attach(cls, specs: RingSpecs) -> Rings:
+        """Map the three rings another process made."""
+        return cls._open(specs, Ring.attach, owner=False)
+
+    @classmethod
+    def _open(cls, specs: RingSpecs, opener: Callable[[RingSpec], Ring], *, owner: bool) -> Rings:
         made: list[Ring] = []
         try:
             for spec in (specs.commands, specs.states, specs.servo):
-                made.append(Ring.attach(spec))
+                made.append(opener(spec))
         except BaseException:
-            _release(made, unlink=False)
+            _release(made, unlink=owner)
             raise
         return cls(*made)
 
