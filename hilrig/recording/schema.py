@@ -42,6 +42,7 @@ TOPICS: Mapping[str, MessageType] = {
     "/controller/state": MessageType.CONTROLLER_STATE,
     "/trajectory/desired": MessageType.POSE,
     "/trajectory/commanded": MessageType.JOINT_STATE,
+    "/robot/servo": MessageType.JOINT_STATE,
     "/events": MessageType.EVENT,
     "/diagnostics/loop": MessageType.LOOP_DIAGNOSTICS,
 }
@@ -198,6 +199,9 @@ def default_channels(
             MessageType.JOINT_STATE,
             names=joint_names,
             arrays=("position",),
+        ),
+        ChannelSpec(
+            "/robot/servo", MessageType.JOINT_STATE, names=joint_names, arrays=("position",)
         ),
         ChannelSpec("/events", MessageType.EVENT),
         ChannelSpec("/diagnostics/loop", MessageType.LOOP_DIAGNOSTICS),

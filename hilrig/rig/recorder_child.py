@@ -28,7 +28,13 @@ from hilrig.recording import (
 from hilrig.rig.child import report
 from hilrig.rig.recorder_feed import release_rings
 from hilrig.rig.rings import Ring, RingSpec
-from hilrig.rig.row_messages import event_samples, ft_samples, joint_samples, tick_samples
+from hilrig.rig.row_messages import (
+    event_samples,
+    ft_samples,
+    joint_samples,
+    servo_samples,
+    tick_samples,
+)
 from hilrig.rig.view_feed import VIEW_BATCH_S, VIEW_HANDOFF_S, ViewBatch, ViewForwarder
 from hilrig.timing import freeze_heap
 
@@ -47,7 +53,8 @@ class RecorderJob:
     """What the recorder process needs from the start, pickled into it when it is spawned."""
 
     path: Path
-    rings: tuple[RingSpec, RingSpec, RingSpec, RingSpec]  # ft, joint, tick, events
+    # ft, joint, tick, events, servo
+    rings: tuple[RingSpec, RingSpec, RingSpec, RingSpec, RingSpec]
     parent_pid: int
     controller: str
     axis_names: tuple[str, ...]
@@ -126,7 +133,7 @@ class _Recorder:
         self, job: RecorderJob, conn: Connection, writer: SessionWriter, rings: list[Ring]
     ) -> None:
         self.job, self.conn, self.writer = job, conn, writer
-        self.ft, self.joint, self.tick, self.events = rings
+        self.ft, self.joint, self.tick, self.events, self.servo = rings
         self.terminated = False
         self.outcome: SessionOutcome | None = None  # the session's end figures, with the stop
         self.view = None
@@ -153,12 +160,13 @@ class _Recorder:
                 (ft_samples, self.ft, "ft"),
                 (joint_samples, self.joint, "joints"),
                 (tick_samples, self.tick, "ticks"),
+                (servo_samples, self.servo, ""),  # not shown live
             ):
                 rows = ring.read_available()
                 for topic, sample in messages_of(rows):
                     self.writer.write(topic, sample)
                     written += 1
-                if self.view is not None:
+                if self.view is not None and stream:
                     self.view.rows_read(stream, rows)
             messages += written
             if self.view is not None:

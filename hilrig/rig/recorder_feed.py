@@ -1,10 +1,10 @@
 """The loop's end of the recorder: shared-memory rings for the rows and the events.
 
-:class:`RecorderFeed` lives in the loop process. It owns four rings: wrist F/T, joint state and
-tick rows (2 s at 1 kHz each by default) and events (fixed-size rows, EVENT_DTYPE: no queue, no
-feeder thread, no pickling in the loop's process). Every call returns at once: a full ring
-refuses the row or event and counts a drop (:attr:`RecorderFeed.drops`), so a stalled, killed or
-missing recorder costs data, never the tick.
+:class:`RecorderFeed` lives in the loop process. It owns five rings: wrist F/T, joint state,
+tick and servo-call rows (2 s at 1 kHz each by default) and events (fixed-size rows,
+EVENT_DTYPE: no queue, no feeder thread, no pickling in the loop's process). Every call returns
+at once: a full ring refuses the row or event and counts a drop (:attr:`RecorderFeed.drops`), so
+a stalled, killed or missing recorder costs data, never the tick.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from hilrig.rig.records import (
     EVENT_DTYPE,
     FT_DTYPE,
     JOINT_DTYPE,
+    SERVO_DTYPE,
     SOURCE_BYTES,
     TICK_DTYPE,
     fitted,
@@ -52,12 +53,13 @@ class RecorderFeed:
                 ("joint", JOINT_DTYPE, rows),
                 ("tick", TICK_DTYPE, rows),
                 ("event", EVENT_DTYPE, events),
+                ("servo", SERVO_DTYPE, rows),
             ):
                 created.append(Ring.create(RingSpec.unique(label, dtype, capacity)))
         except RecordingError:
             release_rings(created)
             raise
-        self.ft, self.joint, self.tick, self.events = created
+        self.ft, self.joint, self.tick, self.events, self.servo = created
 
     def ft_slot(self) -> Rows | None:
         """The next wrist F/T row (FT_DTYPE) to fill, or None if its ring is full (a drop)."""
@@ -96,9 +98,9 @@ class RecorderFeed:
         )
 
     @property
-    def rings(self) -> tuple[Ring, Ring, Ring, Ring]:
-        """The F/T, joint-state, tick and event rings, in that order."""
-        return self.ft, self.joint, self.tick, self.events
+    def rings(self) -> tuple[Ring, Ring, Ring, Ring, Ring]:
+        """The F/T, joint-state, tick, event and servo-call rings, in that order."""
+        return self.ft, self.joint, self.tick, self.events, self.servo
 
     @property
     def headers(self) -> tuple[NDArray[np.int64], ...]:

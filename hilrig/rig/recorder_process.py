@@ -71,7 +71,7 @@ class RecorderProcess:
         self._feed = feed
         self._job = RecorderJob(
             path=self.path,
-            rings=(feed.ft.spec, feed.joint.spec, feed.tick.spec, feed.events.spec),
+            rings=tuple(ring.spec for ring in feed.rings),  # type: ignore[arg-type]
             parent_pid=os.getpid(),
             controller=controller,
             axis_names=axis_names,

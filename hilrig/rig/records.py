@@ -25,6 +25,7 @@ __all__ = [
     "JOINTS",
     "JOINT_DTYPE",
     "JOINT_NAMES",
+    "SERVO_DTYPE",
     "SOURCE_BYTES",
     "TICK_DTYPE",
     "fitted",
@@ -40,6 +41,20 @@ FT_DTYPE = SAMPLE_DTYPE
 # controller's clock and sequence, q rad, qd rad/s, tau N*m, status bits; the status is not
 # recorded)
 JOINT_DTYPE = STATE_DTYPE
+
+# One servo call to the robot (the ARCS link's servoJoint): when it left and returned, the sensor
+# sample its targets answer (0: none), the controller's answer (0: accepted), the loop's mode,
+# the targets sent (rad)
+SERVO_DTYPE = np.dtype(
+    [
+        ("t_ns", np.int64),
+        ("done_ns", np.int64),
+        ("source_ns", np.int64),
+        ("code", np.int64),
+        ("mode", np.int64),
+        ("q", np.float64, (JOINTS,)),
+    ]
+)
 
 # One event (hilrig.recording.EventRecord): host time, value (NaN when none), kind code, then
 # source, axis and detail as UTF-8, each cut to its field (CUT marks a cut: see fitted)

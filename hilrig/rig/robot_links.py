@@ -21,6 +21,7 @@ from hilrig.emulator.rig import RigEndpoints
 from hilrig.errors import LinkError
 from hilrig.rig.arcs.settings import ArcsSettings
 from hilrig.rig.kinds import RobotLinkKind
+from hilrig.rig.rings import Ring
 from hilrig.rig.robot_port import JointStateSource, JointTargetSink
 
 MODBUS_STATE_PERIOD_NS = 1_000_000  # the HRS1 stream sends a state every 1 ms slot
@@ -35,7 +36,8 @@ class RobotLink:
     ``fault_fd`` is readable when ``fault()`` may have a reason to end the session (-1: never);
     ``state_period_ns`` is how often a joint state comes (the loop's staleness follows it);
     ``describe`` is what the session's record says of the link, ``figures()`` what the link
-    did (read once it is closed).
+    did (read once it is closed), ``record_into(ring)`` passes what was sent to the robot on to
+    the recorder (the servo calls; nothing for a link that sends every tick's targets).
     """
 
     states: JointStateSource
@@ -47,6 +49,7 @@ class RobotLink:
     state_period_ns: int
     describe: dict[str, object]
     figures: Callable[[], dict[str, object]]
+    record_into: Callable[[Ring], None]
 
 
 def open_robot_link(
@@ -75,9 +78,10 @@ def _arcs(stack: ExitStack, endpoints: RigEndpoints, settings: ArcsSettings) -> 
     link = ArcsLink(settings)
     stack.callback(link.stop)
     info = link.start()
+    targets = ArcsTargets(link)
     return RobotLink(
         ArcsJointStates(link),
-        ArcsTargets(link),
+        targets,
         link.servo_on,
         link.servo_off,
         link.fault,
@@ -93,6 +97,7 @@ def _arcs(stack: ExitStack, endpoints: RigEndpoints, settings: ArcsSettings) -> 
             **{f"arcs_{key}": value for key, value in info.items()},
         },
         lambda: link.figures,
+        targets.record_into,
     )
 
 
@@ -119,4 +124,5 @@ def _modbus(stack: ExitStack, endpoints: RigEndpoints) -> RobotLink:
         MODBUS_STATE_PERIOD_NS,
         {"robot_link": RobotLinkKind.MODBUS.value},
         dict,
+        lambda ring: None,
     )

@@ -26,6 +26,7 @@ STATE_TOPIC = "/controller/state"
 DESIRED_TOPIC = "/trajectory/desired"
 COMMANDED_TOPIC = "/trajectory/commanded"
 LOOP_TOPIC = "/diagnostics/loop"
+SERVO_TOPIC = "/robot/servo"
 EVENTS_TOPIC = "/events"
 
 Messages = Iterator[tuple[str, Sample]]
@@ -47,6 +48,13 @@ def joint_samples(rows: Rows) -> Messages:
         *(rows[c].tolist() for c in columns), strict=True
     ):
         yield JOINT_TOPIC, JointSample(t_ns, q, qd, tau, device_t_ns=device_t_ns, device_seq=seq)
+
+
+def servo_samples(rows: Rows) -> Messages:
+    """``/robot/servo`` samples of SERVO_DTYPE rows: each servo call's targets (rad), stamped
+    when it left."""
+    for t_ns, q in zip(rows["t_ns"].tolist(), rows["q"].tolist(), strict=True):
+        yield SERVO_TOPIC, JointSample(t_ns, q)
 
 
 _STATE_COLUMNS = tuple((f.name, f.state) for f in TICK_FIELDS if f.state)

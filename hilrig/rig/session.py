@@ -284,6 +284,7 @@ def _connect(
     sensor's first byte and the loop's reads."""
     sensor = FtSerial(endpoints.ft_wrist_port)
     link = open_robot_link(stack, config.robot_link, endpoints, config.arcs)
+    link.record_into(feed.servo)
     sensor.connect(first_sample_timeout_s=None)
     stack.callback(sensor.close)
     return DeviceIO(sensor, link.states, link.targets, feed), link

@@ -59,6 +59,7 @@ def warm_up() -> None:
             ring.put(np.zeros(1, dtype=ring.spec.dtype))
             ring.feed_from(np.zeros(1, dtype=ring.spec.dtype))
             ring.put_first(1)
+        feed.servo.put(np.zeros(1, dtype=feed.servo.spec.dtype))  # the servo calls' rows
         put_row = tick.row_writer(feed.tick.rows, feed.tick.header, feed.headers)
         put_row(0, 0, 0, 0, 0, 0)
         del put_row  # it holds the ring's rows, which must be released before unmapping

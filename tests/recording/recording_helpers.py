@@ -86,6 +86,7 @@ def samples(ticks: int, *, seed: int = 0, period_ns: int = 1_000_000) -> list[tu
             ),
             ("/trajectory/desired", PoseSample(t, (f[20], f[21], f[22]), (0.0, 0.0, 0.6, 0.8))),
             ("/trajectory/commanded", JointSample(t, f[24:30])),
+            ("/robot/servo", JointSample(t, f[18:24])),
             ("/diagnostics/loop", LoopTiming(t, i, period_ns, 200_000 + i, i % 7, i // 50, 0)),
         ]
         if i % 97 == 5:

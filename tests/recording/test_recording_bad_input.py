@@ -67,11 +67,12 @@ def test_corrupt_chunk_data_is_skipped_and_reported(small_session: Written, tmp_
     assert line.startswith(f"{path}: chunk record at bytes {offset}-")
     assert line.endswith(
         "its messages from 2026-01-01T00:00:00.500000000Z to 2026-01-01T00:00:00.749000017Z are"
-        " lost: 2002 (/ft/wrist 250, /ft/base 250, /joint_states 250, /controller/input 250,"
-        " /controller/state 250, /trajectory/desired 250, /trajectory/commanded 250, /events 2,"
+        " lost: 2252 (/ft/wrist 250, /ft/base 250, /joint_states 250, /controller/input 250,"
+        " /controller/state 250, /trajectory/desired 250, /trajectory/commanded 250,"
+        " /robot/servo 250, /events 2,"
         " /diagnostics/loop 250)"
     )
-    assert kept + 2002 == len(small_session.samples)
+    assert kept + 2252 == len(small_session.samples)
     assert recovery.lost == {
         t: 250 for t in TOPICS if t not in ("/events", "/robot_description")
     } | {"/events": 2}

@@ -23,8 +23,10 @@ from hilrig.drivers.robot_state.wire import STATE_DTYPE
 from hilrig.errors import HilrigError, LinkError
 from hilrig.rig.arcs.link_child import serve
 from hilrig.rig.arcs.settings import ArcsSettings
-from hilrig.rig.arcs.shared import SERVO_DTYPE, Rings, RingSpecs, take_rows
+from hilrig.rig.arcs.shared import NO_ANSWER, Rings, RingSpecs, take_rows
 from hilrig.rig.child import ChildProcess
+from hilrig.rig.records import SERVO_DTYPE
+from hilrig.rig.rings import Ring
 
 READY_TIMEOUT_S = 20.0
 SERVO_TIMEOUT_S = 5.0
@@ -173,6 +175,11 @@ class ArcsTargets:
         self.errors = 0
         self.last_error = ""
         self.refused = 0  # targets not finite: never written
+        self._record: Ring | None = None
+
+    def record_into(self, ring: Ring) -> None:
+        """Pass every servo call on to ``ring`` (the recorder's, rows of SERVO_DTYPE)."""
+        self._record = ring
 
     def write(
         self, q_rad: NDArray[np.float64], mode: Mode = Mode.TRACK, *, source_ns: int = 0
@@ -192,6 +199,8 @@ class ArcsTargets:
         """Take the servo calls made since the last poll into the counts."""
         ring = self._servo
         count = int(take_rows(ring.rows, ring.header, self._rows))
+        if count and self._record is not None:
+            self._record.put(self._rows[:count])  # one compiled call; a full ring counts drops
         stats = self.stats
         for i in range(count):
             row = self._rows[i]
@@ -206,7 +215,11 @@ class ArcsTargets:
                 )
             else:
                 self.errors += 1
-                self.last_error = f"servoJoint refused (code {code})"
+                self.last_error = (
+                    "servoJoint got no answer in time"
+                    if code == NO_ANSWER
+                    else f"servoJoint refused (code {code})"
+                )
 
     def close(self) -> None:
         """Nothing of its own: the link's process owns the connection."""

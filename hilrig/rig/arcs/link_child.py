@@ -33,6 +33,7 @@ from hilrig.rig.arcs.shared import (
     ENABLED,
     FAULT,
     HOLD,
+    NO_ANSWER,
     PROTECTIVE_STOP,
     STOP,
     TRACKING,
@@ -71,6 +72,10 @@ SAFETY_NAMES = {
     9: "fault",
 }
 STOP_ACC_RAD_S2 = 3.0  # stopJoint's deceleration: the i5's joint acceleration limit
+# A call the client gave up on waits at most this long (the client's own default, 10 ms, failed
+# single servoJoint calls on a loaded machine); so many in a row end the session
+REQUEST_TIMEOUT_MS = 50
+MAX_FAILED_CALLS = 3
 LOG_LINES = 20  # the client's last log lines kept for an error message
 
 
@@ -105,12 +110,14 @@ class _Link:
         self._report_lock = threading.Lock()  # the pipe: this thread and the RTDE callback's
         self.rpc = pyaubo_sdk.RpcClient()
         self.rpc.setLogHandler(self._on_log)
+        self.rpc.setRequestTimeout(REQUEST_TIMEOUT_MS)
         self.rtde = pyaubo_sdk.RtdeClient()
         self.servoing = False
         self.faulted = ""
         self.samples = 0
         self.servo_calls = 0
         self.servo_missed = 0
+        self.servo_failed = 0  # calls that got no answer
         self.servo_lateness = LatencyHistogram()
         LatencyHistogram().add(0)  # its kernel loaded now, not at the first servo period
         self.last_q: list[float] = []
@@ -231,6 +238,7 @@ class _Link:
         a = max(self._limits.acceleration_max_rad_s2)
         next_ns = time.monotonic_ns() + period_ns
         command, commands, servo = self._command, self.rings.commands, self.rings.servo
+        failed = 0  # calls in a row that got no answer
         while True:
             wait_ns = next_ns - time.monotonic_ns()
             if self.conn.poll(max(wait_ns, 0) / 1e9):
@@ -257,13 +265,16 @@ class _Link:
             self.servo_lateness.add(sent_ns - nominal_ns)
             try:
                 code = int(self.motion.servoJoint(q, a, v, t_s, s.lookahead_s, s.gain))
-            except Exception as err:  # the client raises on a lost link or a timeout
-                self.fault(f"servoJoint failed: {err}")
-                code = -1
+                failed = 0
+            except Exception as err:  # no answer within the request timeout, or a lost link
+                code, failed = NO_ANSWER, failed + 1
+                self.servo_failed += 1
+                if failed >= MAX_FAILED_CALLS:
+                    self.fault(f"servoJoint failed {failed} times in a row: {err}")
             done_ns = time.monotonic_ns()
             self.servo_calls += 1
             servo.push(sent_ns, done_ns, int(row["source_ns"]), code, int(row["mode"]), q)
-            if code != 0 and not self.faulted:
+            if code not in (0, NO_ANSWER) and not self.faulted:
                 self.fault(f"the controller refused servoJoint (code {code}): not in servo mode")
             if self.faulted:
                 self.servo_off()
@@ -276,6 +287,7 @@ class _Link:
             "rtde_samples": self.samples,
             "servo_calls": self.servo_calls,
             "servo_periods_missed": self.servo_missed,
+            "servo_calls_unanswered": self.servo_failed,
             "servo_lateness_us": (late.quantile_us(0.5), late.quantile_us(0.99), late.max_ns / 1e3),
         }
 

@@ -5,7 +5,8 @@
 - ``states`` (the link produces, the loop consumes): every RTDE joint-state sample as a row of
   the loop's own :data:`~hilrig.drivers.robot_state.wire.STATE_DTYPE`, stamped on receipt.
 - ``servo`` (the link produces, the loop consumes): every ``servoJoint`` call, its targets,
-  when it left and returned, the controller's answer.
+  when it left and returned, the controller's answer (:data:`~hilrig.rig.records.SERVO_DTYPE`);
+  the loop passes them on to the recorder's ring of the same rows.
 
 Rings are the recorder's (:mod:`hilrig.rig.rings`): no locks, no system calls, a full ring
 refuses and counts. The loop creates all three (it outlives the link) and the link attaches.
@@ -24,6 +25,7 @@ from numpy.typing import NDArray
 from hilrig.compiled import njit
 from hilrig.drivers.joint_targets.wire import Mode
 from hilrig.drivers.robot_state.wire import JOINTS, STATE_DTYPE, RobotStatus
+from hilrig.rig.records import SERVO_DTYPE
 from hilrig.rig.rings import Ring, RingSpec
 from hilrig.ring_kernels import READ_AT, WRITE_AT
 
@@ -35,21 +37,12 @@ COMMAND_DTYPE = np.dtype(
         ("q", np.float64, (JOINTS,)),  # rad
     ]
 )
-SERVO_DTYPE = np.dtype(
-    [
-        ("t_ns", np.int64),  # when the servoJoint call left
-        ("done_ns", np.int64),  # when it returned
-        ("source_ns", np.int64),  # the sensor sample its targets answer (0: none)
-        ("code", np.int64),  # the controller's answer (0: accepted)
-        ("mode", np.int64),  # the Mode the loop gave
-        ("q", np.float64, (JOINTS,)),  # rad, as sent
-    ]
-)
 COMMAND_ROWS = 4096  # 4 s of ticks at 1 kHz
 STATE_ROWS = 4096  # 8 s at 500 Hz
 SERVO_ROWS = 2048  # 10 s at 200 Hz
 
 TRACK, HOLD, STOP = int(Mode.TRACK), int(Mode.HOLD), int(Mode.STOP)
+NO_ANSWER = -1000  # a servo row's code when the call got no answer (not one of AUBO's codes)
 # the status bits a joint-state row carries (RobotStatus), from the controller's modes
 ENABLED, TRACKING = int(RobotStatus.ENABLED), int(RobotStatus.TRACKING)
 PROTECTIVE_STOP, EMERGENCY_STOP = int(RobotStatus.PROTECTIVE_STOP), int(RobotStatus.EMERGENCY_STOP)

@@ -9,6 +9,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 from mcap.reader import make_reader
 
@@ -85,6 +86,30 @@ def test_every_rtde_sample_is_recorded_and_servo_mode_is_left(session: SessionRe
     assert session.drops == 0
 
 
+def test_every_servo_call_is_recorded_with_targets_a_tick_commanded(
+    session: SessionResult,
+) -> None:
+    counters = session.rig_counters
+    assert counters is not None
+    frames = load(session.path, topics=["/robot/servo", "/trajectory/commanded"])
+    servo, commanded = frames["/robot/servo"], frames["/trajectory/commanded"]
+    columns = [f"position_{j}" for j in range(6)]
+    # every call the link made is in the file, and the controller took each one
+    assert len(servo) == session.robot_link["servo_calls"] == counters.servo_joints
+    assert np.all(np.diff(servo.index.to_numpy()) > 0)
+    # each call carried a tick's targets as the tick wrote them (the first ones, before the
+    # loop's first targets, hold the start pose): the newest tick's that had started when it
+    # left, or the one before it (a tick writes its targets after its start)
+    sent, ticks = servo[columns].to_numpy(), commanded[columns].to_numpy()
+    t_sent, t_ticks = servo.index.to_numpy(), commanded.index.to_numpy()
+    first = np.searchsorted(t_sent, t_ticks[1])
+    newest = np.searchsorted(t_ticks, t_sent[first:], side="right") - 1
+    same = (sent[first:] == ticks[newest]).all(axis=1)
+    before = (sent[first:] == ticks[newest - 1]).all(axis=1)
+    assert np.all(same | before)
+    assert np.count_nonzero(same) > len(same) // 2
+
+
 def test_the_recording_says_which_link_and_never_the_password(session: SessionResult) -> None:
     with session.path.open("rb") as stream:  # the official reader
         attached = {a.name: a.data for a in make_reader(stream).iter_attachments()}
@@ -122,6 +147,17 @@ def test_a_controller_fault_ends_the_session_with_one_line_and_an_event(
     faults = [e for e in result.events if e.kind is EventKind.FAULT and e.source == "session"]
     assert [e.detail for e in faults] == [f"{ended_by}: robot held, session ended"]
     assert len(frames["/events"]) == len(result.events)
+
+
+def test_a_lost_link_ends_the_session_with_the_client_s_reason(tmp_path: Path) -> None:
+    result = run(tmp_path, "dropped.mcap", 20.0, during=after_ticks(500, "arcs.drop_links"))
+    assert result.ended_by.startswith("robot: servoJoint failed 3 times in a row: ")
+    assert "\n" not in result.ended_by
+    assert result.summary.ticks < 15_000
+    assert result.robot_link["servo_calls_unanswered"] == 3
+    faults = [e.detail for e in result.events if e.source == "session"]
+    assert faults == [f"{result.ended_by}: robot held, session ended"]
+    load(result.path)  # whole
 
 
 def test_a_stalled_rtde_stream_holds_the_robot_and_the_session_goes_on(tmp_path: Path) -> None:
