@@ -15,6 +15,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from hilrig.drivers.base import LinkStatus
 from hilrig.drivers.joint_targets.wire import Mode
 
 
@@ -29,6 +30,10 @@ class JointStateSource(Protocol):
     def poll(self, now_ns: int) -> NDArray[np.void]: ...
 
     def latest(self) -> np.void | None: ...
+
+    def status(self) -> LinkStatus:
+        """The link's counts (``samples``: the states received since it connected)."""
+        ...
 
     def close(self) -> None: ...
 

@@ -333,18 +333,23 @@ def _average_wrench(devices: DeviceIO, duration_s: float) -> NDArray[np.float64]
 
 def _read_to_the_end(devices: DeviceIO, rig: RigProcess | None) -> None:
     """Stop the sensor's stream and record the frames still on their way; with the emulated rig,
-    stop it and record the joint states it sent up to its end (its socket's EOF)."""
+    stop it and record every joint state it says it sent (the ARCS link's process may hand on
+    its last ones late on a loaded machine)."""
     devices.sensor.stop_streaming()
     _read_until_quiet(devices, sensor_only=True)
     if rig is not None:
-        rig.stop()
-        _read_until_quiet(devices, sensor_only=False)
+        counters = rig.stop()
+        sent = (
+            0 if counters is None else max(counters.rtde_samples_sent, counters.joint_frames_sent)
+        )
+        _read_until_quiet(devices, sensor_only=False, robot_states=sent)
 
 
-def _read_until_quiet(devices: DeviceIO, *, sensor_only: bool) -> None:
-    """Read (and record) until no data came for QUIET_S, or MAX_DRAIN_S passed. With
-    ``sensor_only`` only the wrist sensor's silence counts: the robot streams on (waiting for it
-    to fall silent took MAX_DRAIN_S at every session's end)."""
+def _read_until_quiet(devices: DeviceIO, *, sensor_only: bool, robot_states: int = 0) -> None:
+    """Read (and record) until no data came for QUIET_S and ``robot_states`` joint states came
+    in all, or MAX_DRAIN_S passed. With ``sensor_only`` only the wrist sensor's silence counts:
+    the robot streams on (waiting for it to fall silent took MAX_DRAIN_S at every session's
+    end)."""
     quiet_ns = round(QUIET_S * 1e9)
     last = [devices.samples_read, time.monotonic_ns()]  # samples read, when new data came last
 
@@ -352,7 +357,8 @@ def _read_until_quiet(devices: DeviceIO, *, sensor_only: bool) -> None:
         now = time.monotonic_ns()
         if len(wrist) or (not sensor_only and devices.samples_read != last[0]):
             last[:] = [devices.samples_read, now]
-        return now - last[1] >= quiet_ns
+        all_in = devices.robot.status().samples >= robot_states
+        return now - last[1] >= quiet_ns and all_in
 
     devices.pump_until(quiet, time.monotonic_ns() + round(MAX_DRAIN_S * 1e9), step_ns=quiet_ns)
 

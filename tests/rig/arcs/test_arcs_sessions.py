@@ -97,17 +97,20 @@ def test_every_servo_call_is_recorded_with_targets_a_tick_commanded(
     # every call the link made is in the file, and the controller took each one
     assert len(servo) == session.robot_link["servo_calls"] == counters.servo_joints
     assert np.all(np.diff(servo.index.to_numpy()) > 0)
-    # each call carried a tick's targets as the tick wrote them (the first ones, before the
-    # loop's first targets, hold the start pose): the newest tick's that had started when it
-    # left, or the one before it (a tick writes its targets after its start)
+    # each call carried the targets of a tick that had started before it left, as the tick
+    # wrote them, and later calls never carry an earlier tick's (the first ones, before the
+    # loop's first targets, hold the start pose)
     sent, ticks = servo[columns].to_numpy(), commanded[columns].to_numpy()
     t_sent, t_ticks = servo.index.to_numpy(), commanded.index.to_numpy()
-    first = np.searchsorted(t_sent, t_ticks[1])
-    newest = np.searchsorted(t_ticks, t_sent[first:], side="right") - 1
-    same = (sent[first:] == ticks[newest]).all(axis=1)
-    before = (sent[first:] == ticks[newest - 1]).all(axis=1)
-    assert np.all(same | before)
-    assert np.count_nonzero(same) > len(same) // 2
+    ticks_of: dict[bytes, list[int]] = {}
+    for k, row in enumerate(ticks):
+        ticks_of.setdefault(row.tobytes(), []).append(k)
+    latest, after_the_first_ticks = -1, np.searchsorted(t_sent, t_ticks[1])
+    for t, row in zip(t_sent[after_the_first_ticks:], sent[after_the_first_ticks:], strict=True):
+        started = [k for k in ticks_of.get(row.tobytes(), []) if t_ticks[k] <= t]
+        assert started, f"a servo call at {t} ns carried no tick's targets"
+        assert started[-1] >= latest  # in the ticks' order
+        latest = started[-1]
 
 
 def test_the_recording_says_which_link_and_never_the_password(session: SessionResult) -> None:
