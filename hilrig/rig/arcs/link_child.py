@@ -43,7 +43,7 @@ from hilrig.rig.arcs.shared import (
 )
 from hilrig.rig.child import report
 from hilrig.robot.limits import AUBO_I5_LIMITS
-from hilrig.timing import LatencyHistogram
+from hilrig.timing import LatencyHistogram, freeze_heap, raise_priority, tighten_timer_slack
 
 # the controller's clock (s since it started) first: replay aligns the states on it
 TOPIC = (
@@ -76,6 +76,7 @@ STOP_ACC_RAD_S2 = 3.0  # stopJoint's deceleration: the i5's joint acceleration l
 # single servoJoint calls on a loaded machine); so many in a row end the session
 REQUEST_TIMEOUT_MS = 50
 MAX_FAILED_CALLS = 3
+LINK_PRIORITY = 45  # SCHED_FIFO: below the loop's 50, above the emulated rig's 40
 LOG_LINES = 20  # the client's last log lines kept for an error message
 
 
@@ -329,7 +330,13 @@ def _log_in(client: Any, what: str, port: int, s: ArcsSettings) -> None:
 
 
 def serve(conn: Connection, settings: ArcsSettings, specs: RingSpecs) -> None:
-    """The child's entry (spawned by :class:`~hilrig.rig.arcs.link.ArcsLink`)."""
+    """The child's entry (spawned by :class:`~hilrig.rig.arcs.link.ArcsLink`). Its threads run
+    under SCHED_FIFO at :data:`LINK_PRIORITY` where permitted (AUBO's client's threads are made
+    here, so they inherit it): between the loop's and the emulated rig's, since the servo
+    stream carries the loop's commands to the arm (a busy machine starved it past the
+    controller's servo timeout)."""
+    raise_priority(LINK_PRIORITY)
+    tighten_timer_slack()
     rings = Rings.attach(specs)
     link: _Link | None = None
     try:
@@ -342,6 +349,7 @@ def serve(conn: Connection, settings: ArcsSettings, specs: RingSpecs) -> None:
         except Exception as err:  # the client raises on timeouts and broken replies
             report(conn, "error", f"{type(err).__name__}: {err}{_last_log(link)}")
             return
+        freeze_heap()  # no collector pass over the imports stops a servo period
         link.say("ready", info)
         link.serve()
     finally:
