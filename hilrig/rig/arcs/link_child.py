@@ -276,9 +276,24 @@ class _Link:
             self.servo_calls += 1
             servo.push(sent_ns, done_ns, int(row["source_ns"]), code, int(row["mode"]), q)
             if code not in (0, NO_ANSWER) and not self.faulted:
-                self.fault(f"the controller refused servoJoint (code {code}): not in servo mode")
+                self.fault(self._refusal(code))
             if self.faulted:
                 self.servo_off()
+
+    def _refusal(self, code: int) -> str:
+        """Why the controller refused a servoJoint: its safety or robot mode, asked now, in the
+        words the RTDE stream's change would have (whichever comes first says the same), else
+        servo mode left."""
+        try:
+            safety, robot = int(self.state.getSafetyModeType()), int(self.state.getRobotModeType())
+        except Exception:  # the link is going: the code says what is known
+            safety, robot = NORMAL, RUNNING
+        if safety != NORMAL:
+            name = SAFETY_NAMES.get(safety, str(safety))
+            return f"the controller reports {name} (safety mode {safety})"
+        if robot != RUNNING:
+            return f"the robot left running (robot mode {robot})"
+        return f"the controller refused servoJoint (code {code}): not in servo mode"
 
     def figures(self) -> dict[str, object]:
         """What the link did: RTDE samples, servoJoint calls, missed servo periods and the
