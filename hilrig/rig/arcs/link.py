@@ -12,6 +12,7 @@ sends the newest every servo period.
 from __future__ import annotations
 
 import contextlib
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -125,6 +126,7 @@ class ArcsJointStates:
         self.rows: NDArray[np.void] = np.zeros(POLL_ROWS, dtype=STATE_DTYPE)
         self.newest: NDArray[np.void] = np.zeros(1, dtype=STATE_DTYPE)
         self.samples = 0
+        self._first_ns = 0  # the first state's receive time
         self.endpoint = f"rtde://{link.settings.host}:{link.settings.rtde_port}"
 
     def poll(self, now_ns: int) -> NDArray[np.void]:
@@ -132,6 +134,8 @@ class ArcsJointStates:
         ring = self._ring
         count = int(take_rows(ring.rows, ring.header, self.rows))
         if count:
+            if not self.samples:
+                self._first_ns = int(self.rows[0]["t_ns"])
             self.newest[0] = self.rows[count - 1]
             self.samples += count
         return self.rows[:count]
@@ -143,10 +147,15 @@ class ArcsJointStates:
         return -1  # read at every tick: the sensor's frames wake the loop
 
     def status(self) -> LinkStatus:
-        latest = self.latest()
-        return LinkStatus(
-            self.endpoint, True, self.samples, 0.0, None if latest is None else 0, 0, 0, 0, ""
-        )
+        """The states' count, the newest one's age now and their rate since the first (the
+        link's process keeps the connection: its faults come over its pipe, not here)."""
+        if not self.samples:
+            return LinkStatus(self.endpoint, True, 0, 0.0, None, 0, 0, 0, "")
+        newest_ns = int(self.newest[0]["t_ns"])
+        span_ns = newest_ns - self._first_ns
+        rate_hz = (self.samples - 1) * 1e9 / span_ns if span_ns > 0 else 0.0
+        age_ns = time.monotonic_ns() - newest_ns
+        return LinkStatus(self.endpoint, True, self.samples, rate_hz, age_ns, 0, 0, 0, "")
 
     def close(self) -> None:
         """Nothing of its own: the link's process owns the connection."""
