@@ -71,6 +71,11 @@ class OutputError(HilrigError):
     """An output cannot be written as asked: it exists, or its folder is missing or read-only."""
 
 
+class DiskError(OutputError):
+    """An output could not be written because its disk is full, over quota, past its largest
+    file or failing (ENOSPC, EDQUOT, EFBIG, EIO); the message says what is kept and what to do."""
+
+
 class StudyError(HilrigError):
     """A study cannot be indexed, curated or reported as asked (bad folder, study file, filter)."""
 

@@ -15,18 +15,40 @@ folders (hidden, same suffix), so the final move is a rename on one file system.
 if someone created the path meanwhile; with it, ``os.replace`` (atomic, one file at a time). If
 a move fails, the new files already moved are taken back out, so a failure leaves the folders as
 they were (with ``overwrite``, files already replaced stay replaced).
+
+A disk that cannot take the outputs (full, over quota, past its largest file, failing: see
+:data:`DISK_ERRORS`) is an expected failure: whatever the writer raised (an OSError, or a
+library's error that carries it as a cause or in its text), :func:`new_files` removes the
+temporaries and raises :class:`DiskError`, one line saying what could not be written, where,
+that nothing was written, and what to do.
 """
 
 from __future__ import annotations
 
+import errno
 import os
+import re
 import secrets
 import stat
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
-from hilrig.errors import OutputError
+from hilrig.errors import DiskError, OutputError
+
+#: The errors of a disk that cannot take an output: what each means, and what to do.
+DISK_ERRORS: dict[int, tuple[str, str]] = {
+    errno.ENOSPC: ("the disk is full", "free space and run again"),
+    errno.EDQUOT: ("the disk quota is exceeded", "free space (or raise the quota) and run again"),
+    errno.EFBIG: (
+        "a file is larger than its file system allows",
+        "write to another file system and run again",
+    ),
+    errno.EIO: ("the disk failed to write (I/O error)", "check the disk and run again"),
+}
+#: An error number in a library's message: Python's ``[Errno 28]``, Arrow's ``[errno 28]``,
+#: Rust's ``(os error 28)`` (Rerun).
+_ERRNO_TEXT = re.compile(r"(?:\berrno|\bos error)\s*(\d+)", re.IGNORECASE)
 
 
 def check_new_file(path: Path, *, overwrite: bool = False, create_folder: bool = False) -> None:
@@ -86,14 +108,50 @@ def new_files(
                 raise OutputError(f"{final}: nothing was written")
             _move_into_place(temporary, final, overwrite=overwrite)
             moved.append(final)
-    except BaseException:
+    except BaseException as error:
         for final in moved if not overwrite else []:
             final.unlink(missing_ok=True)
         for temporary in temporaries:
             temporary.unlink(missing_ok=True)
         for folder in reversed(made_folders):
             _remove_if_empty(folder)
-        raise
+        code = None if isinstance(error, DiskError) else disk_errno(error)
+        if code is None:
+            raise
+        replaced = len(moved) if overwrite else 0
+        raise DiskError(disk_message(code, finals, replaced=replaced)) from error
+
+
+def disk_errno(error: BaseException) -> int | None:
+    """The :data:`DISK_ERRORS` number behind ``error``: an OSError's in its chain of causes, or
+    one its messages name (libraries that carry it as text); None if there is none."""
+    chain: list[BaseException] = []
+    link: BaseException | None = error
+    while link is not None and link not in chain:
+        chain.append(link)
+        link = link.__cause__ or link.__context__
+    for link in chain:
+        if isinstance(link, OSError) and link.errno in DISK_ERRORS:
+            return link.errno
+    for link in chain:
+        text = str(link)
+        for number in _ERRNO_TEXT.findall(text):
+            if int(number) in DISK_ERRORS:
+                return int(number)
+        for code in DISK_ERRORS:
+            if os.strerror(code) in text:
+                return code
+    return None
+
+
+def disk_message(code: int, paths: Sequence[Path], *, replaced: int = 0) -> str:
+    """One line for a disk error ``code`` (:data:`DISK_ERRORS`) that stopped writing ``paths``:
+    what, where, what is left (``replaced`` outputs were already replaced) and what to do."""
+    meaning, remedy = DISK_ERRORS[code]
+    what = paths[0].name if len(paths) == 1 else f"{len(paths)} files"
+    where = os.path.commonpath([str(path.parent) for path in paths])
+    left = "nothing was written" if not replaced else f"{replaced} of them already replaced"
+    return f"{meaning}: could not write {what} ({where}): {left}; {remedy}"
 
 
 def _move_into_place(temporary: Path, final: Path, *, overwrite: bool) -> None:

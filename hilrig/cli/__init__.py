@@ -36,6 +36,7 @@ from hilrig.cli.errors import (
     ERROR_EXIT,
     INTERRUPT_EXIT,
     SETTINGS,
+    disk_error,
     print_bug,
     print_error,
     print_interrupted,
@@ -88,6 +89,10 @@ def _run(args: Sequence[str]) -> int:
         print_interrupted()
         return INTERRUPT_EXIT
     except Exception as err:
+        disk = disk_error(err)
+        if disk is not None:
+            print_error(disk)
+            return ERROR_EXIT
         print_bug(err)
         return BUG_EXIT
     # typer turns a KeyboardInterrupt in a command into exit status 130 (no command returns it)

@@ -64,7 +64,7 @@ def demo(
     from hilrig.cli.demo_study import run_study
     from hilrig.cli.paper import ELSEWHERE, check_outputs
     from hilrig.cli.session_output import print_result
-    from hilrig.errors import OutputError
+    from hilrig.errors import DiskError, OutputError
     from hilrig.paper.report import rich_table
     from hilrig.paper.reproduce import reproduce
 
@@ -74,6 +74,8 @@ def demo(
     try:
         check_outputs(outputs(out))  # every output, before any work
         reproduction = reproduce(out / "paper")
+    except DiskError:  # says what to do itself
+        raise
     except OutputError as err:
         err.add_note(ELSEWHERE)
         raise

@@ -2,6 +2,8 @@
 never read as markup, with an exit status that says what kind it was.
 
 - an expected failure (HilrigError, a mistake in the command line): ``error: ...``, exit 2;
+  a disk that refused a write (full, over quota, failing) is one too, wherever it happened
+  (:func:`disk_error`);
 - anything else is a bug: ``error: unexpected <type>: <message>`` asking for a report, exit 3;
 - Ctrl-C outside a session, or while a session waits for the machine's other session:
   ``interrupted: ...``, exit 130;
@@ -20,7 +22,7 @@ from typing import TYPE_CHECKING, ParamSpec, TextIO, TypeVar
 
 import typer
 
-from hilrig.errors import HilrigError
+from hilrig.errors import DiskError, HilrigError
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -82,6 +84,22 @@ def print_usage_error(message: str, command: str | None) -> None:
     print_line("error", "bold red", f"{message}{where}")
 
 
+def disk_error(err: BaseException) -> DiskError | None:
+    """``err`` as a one-line :class:`DiskError` if a disk refused a write behind it (a write
+    outside :func:`hilrig.outputs.new_files`, which raises DiskError itself); else None."""
+    from hilrig.outputs import DISK_ERRORS, disk_errno
+
+    code = disk_errno(err)
+    if code is None:
+        return None
+    meaning, remedy = DISK_ERRORS[code]
+    names = [e.filename for e in (err, err.__cause__, err.__context__) if isinstance(e, OSError)]
+    where = next((f" {name}" for name in names if name), "")
+    disk = DiskError(f"{meaning}: could not write{where or ' an output'}; {remedy}")
+    disk.__cause__ = err  # hilrig --debug shows the write that failed
+    return disk
+
+
 def print_bug(err: BaseException) -> None:
     """An unexpected exception: one line naming it and asking for a bug report (the full
     traceback first with ``--debug``)."""
@@ -134,6 +152,12 @@ def one_line_errors(command: Callable[P, R]) -> Callable[P, R]:
             return command(*args, **kwargs)
         except HilrigError as err:
             print_error(err)
+            raise typer.Exit(ERROR_EXIT) from err
+        except Exception as err:
+            disk = disk_error(err)
+            if disk is None:
+                raise
+            print_error(disk)
             raise typer.Exit(ERROR_EXIT) from err
 
     return run

@@ -27,13 +27,15 @@ def paper(
     """Run the paper's simulations (sections 2.1 and 3.4) and compare with its numbers."""
     from rich.console import Console
 
-    from hilrig.errors import OutputError
+    from hilrig.errors import DiskError, OutputError
     from hilrig.paper.report import rich_table
     from hilrig.paper.reproduce import output_names, reproduce
 
     try:
         check_outputs(out / name for name in output_names())
         reproduction = reproduce(out)
+    except DiskError:  # says what to do itself
+        raise
     except OutputError as err:
         err.add_note(ELSEWHERE)
         raise
