@@ -113,6 +113,7 @@ def record(session: DemoSession, out: Path) -> SessionResult:
     import threading
 
     from hilrig.cli.errors import print_waiting
+    from hilrig.recording.session_ids import new_session_id
     from hilrig.rig import LoopConfig, SessionConfig, record_session
 
     config = SessionConfig(
@@ -122,7 +123,7 @@ def record(session: DemoSession, out: Path) -> SessionResult:
         trajectory=session.trajectory,
         duration_s=session.duration_s,
         loop=LoopConfig(),
-        session_id=f"demo-{session.scenario}",
+        session_id=new_session_id(),
     )
     stop = threading.Event()
     before = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}

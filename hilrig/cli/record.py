@@ -128,7 +128,6 @@ def record(
     """Run the admittance controller in the loop with the rig and record every stream."""
     import signal
     import threading
-    import time
 
     from hilrig.cli.errors import print_waiting, print_warning
     from hilrig.cli.robot_options import arcs_settings, real_endpoints
@@ -139,6 +138,7 @@ def record(
         summary_console,
     )
     from hilrig.errors import HilrigError
+    from hilrig.recording.session_ids import new_session_id
     from hilrig.rig import LoopConfig, SessionConfig, record_session
     from hilrig.rig.config_file import RigFile, read_rig_file, session_path
 
@@ -174,7 +174,7 @@ def record(
             joint_params=joint_params,
             cpu=cpu,
         ),
-        session_id=time.strftime("%Y%m%d-%H%M%S"),
+        session_id=new_session_id(),
         body_region=body_region or "",
         contact_area_cm2=contact_area_cm2,
     )

@@ -49,6 +49,7 @@ from hilrig.recording import (
     SessionInfo,
     SessionWriter,
 )
+from hilrig.recording.session_ids import new_session_id
 from hilrig.replay.results import INPUT_KEY, RUNS_KEY, run_slices, stored_float32
 
 PathLike = str | os.PathLike[str]
@@ -289,9 +290,8 @@ def mcap_into(
     slices = run_slices(table)
     topics = topic_names(list(slices))
     if session is None:
-        stem = Path(str(meta.get("source", "table"))).stem or "table"
         session = SessionInfo(
-            session_id=f"replay-{stem}",
+            session_id=new_session_id(),
             subject_id=TABLE_SUBJECT,
             rig="replay",
             controller="replay",

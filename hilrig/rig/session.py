@@ -123,7 +123,7 @@ def record_session(
         if on_event is not None:
             on_event(record)
 
-    session_id = config.session_id_or_now()
+    session_id = config.session_id_or_new()
     model = RobotModel()
     with ExitStack() as stack:
         stack.enter_context(one_session_at_a_time(stop, on_wait))

@@ -8,7 +8,6 @@ import io
 import json
 import math
 import re
-import time
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -20,6 +19,7 @@ from hilrig.emulator.rig import RigEndpoints
 from hilrig.errors import HilrigError
 from hilrig.machine import Setting, port_settings, read_settings
 from hilrig.recording import Attachment, validate_subject_id
+from hilrig.recording.session_ids import new_session_id
 from hilrig.rig.arcs.settings import ArcsSettings
 from hilrig.rig.config_file import check_recording_path
 from hilrig.rig.kinds import RigKind, RobotLinkKind
@@ -146,8 +146,9 @@ class SessionConfig:
             settings += port_settings(Path(self.endpoints.ft_wrist_port))
         return settings
 
-    def session_id_or_now(self) -> str:
-        return self.session_id or time.strftime("%Y%m%d-%H%M%S")
+    def session_id_or_new(self) -> str:
+        """The configured session id, or a new one."""
+        return self.session_id or new_session_id()
 
 
 def machine_json(settings: Iterable[Setting]) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -105,7 +106,8 @@ def test_a_table_input_is_written_on_its_own_time_axis(tmp_path: Path) -> None:
         times = [m.log_time for _, _, m, _ in reader.iter_decoded_messages()]
         session = next(m.metadata for m in reader.iter_metadata() if m.name == "session")
     assert times == [round(n * 0.002 * 1e9) for n in range(20)]
-    assert session["subject_id"] == "X00" and session["session_id"] == "replay-inline"
+    assert session["subject_id"] == "X00"
+    assert re.fullmatch(r"[0-9A-HJKMNP-TV-Z]{26}", session["session_id"])  # a new session id
 
 
 def test_topic_names_are_ros_names_and_unique() -> None:
