@@ -27,6 +27,7 @@ from hilrig.analysis.events import CARTESIAN_AXES, JOINT_AXES, FloatArray
 from hilrig.errors import AnalysisError
 from hilrig.recording import SessionInfo, inspect, load
 from hilrig.recording.session import SESSION_METADATA, validate_subject_id
+from hilrig.recording.session_ids import written_as
 
 STATE_TOPIC = "/controller/state"
 COMMANDED_TOPIC = "/trajectory/commanded"
@@ -302,23 +303,25 @@ def find_inputs(paths: Iterable[Path], *, exclude: Path | None = None) -> list[P
 
 
 def load_sources(paths: Iterable[Path], *, exclude: Path | None = None) -> tuple[Source, ...]:
-    """Every input under ``paths`` (see :func:`find_inputs`); parts of a split session (same
-    session id) are read as one session. Raises AnalysisError or RecordingError (one line) for
-    input that cannot be read."""
+    """Every input under ``paths`` (see :func:`find_inputs`); the parts of a split session (same
+    session id, named as its writer named them) are read as one session, and any other files
+    as sessions of their own, whatever id they claim. Raises AnalysisError or RecordingError
+    (one line) for input that cannot be read."""
     files = find_inputs(paths, exclude=exclude)
-    sessions: dict[str, list[tuple[int, Path]]] = {}
-    sources: list[Source | str] = []  # a session's place is kept by its id until all are seen
+    sessions: dict[tuple[str, str], list[tuple[int, Path]]] = {}
+    sources: list[Source | tuple[str, str]] = []  # a session's place, until all are seen
     for path in files:
         if path.suffix == REPLAY_SUFFIX:
             sources.append(load_replay(path))
             continue
         record = inspect(path).metadata.get(SESSION_METADATA, {})
-        key = record.get("session_id", str(path))
+        part = record.get("part", "0")
+        number = int(part) if part.isdigit() else 0
+        key = (record.get("session_id", ""), written_as(str(path), number))
         if key not in sessions:
             sessions[key] = []
             sources.append(key)
-        part = record.get("part", "0")
-        sessions[key].append((int(part) if part.isdigit() else 0, path))
+        sessions[key].append((number, path))
     return tuple(
         s if isinstance(s, Source) else load_session([p for _, p in sorted(sessions[s])])
         for s in sources

@@ -123,11 +123,17 @@ def exclude_command(
     """Leave a session, or some of its events, out of the study, with the reason: written to
     DIR/study.toml; the recording is not touched."""
     from hilrig.errors import StudyError
-    from hilrig.study.catalogue import index, sessions
+    from hilrig.study.catalogue import index, sessions, twins
     from hilrig.study.study_file import exclude, read_study, write_study
 
-    known = set(sessions(index(root)[0])["session"])
-    if session not in known:
+    catalogue = sessions(index(root)[0])
+    claimed = twins(catalogue, session)
+    if claimed:
+        raise StudyError(
+            f"{session!r} is claimed by {len(claimed)} sessions of {root}: name one as "
+            f"{' or '.join(claimed)}"
+        )
+    if session not in set(catalogue["session"]):
         raise StudyError(f"{session!r} is not a session of {root} (hilrig study list {root})")
     written = write_study(root, exclude(read_study(root), session, reason, event or ()))
     what = session if not event else f"{session} events {', '.join(map(str, event))}"

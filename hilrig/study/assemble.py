@@ -25,7 +25,7 @@ from hilrig import __version__
 from hilrig.analysis import default_baseline
 from hilrig.errors import StudyError
 from hilrig.study import stats
-from hilrig.study.catalogue import index, sessions
+from hilrig.study.catalogue import index, sessions, twins
 from hilrig.study.curves import curves, representatives
 from hilrig.study.observations import AnalysisSettings, events_of, jobs, observations
 from hilrig.study.records import StudyReport
@@ -119,7 +119,13 @@ def _exclusions(
     skip: set[tuple[str, int]] = set()
     notes = []
     for e in study.exclusions:
-        if e.session not in known:
+        claimed = twins(catalogue, e.session)
+        if claimed:
+            notes.append(
+                f"study.toml excludes {e.target}, but {len(claimed)} sessions claim that id: "
+                f"name one as {' or '.join(claimed)}"
+            )
+        elif e.session not in known:
             notes.append(f"study.toml excludes {e.target}, which is not in the catalogue")
         elif e.event is None:
             reasons[e.session] = e.reason

@@ -8,9 +8,12 @@ faults, and the loop's figures (ticks, dropped rows, hold ticks, missed deadline
 read is kept in ``root/.hilrig-study/files.parquet`` with each file's size and modification
 time, so indexing again reads only new or changed files.
 
-A session is one row: the parts of a split session (same session id) are joined. Its
-``flags`` name what may make it unfit for the study (:data:`FLAGS`); an unreadable file is a
-row of its own, flagged ``unreadable``, with the reason in ``problem``.
+A session is one row, keyed by its files: one file, or the parts of one split session (the
+files its writer split, same session id); files are never joined by their id alone. Its key
+(the ``session`` column) is its session id, or ``ID@PATH`` (its first file) when other files
+of the study claim that id too: each such session is flagged ``duplicate-id``. Its ``flags``
+name what may make it unfit for the study (:data:`FLAGS`); an unreadable file is a row of its
+own, flagged ``unreadable``, keyed by its path, with the reason in ``problem``.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import pandas as pd
 
 from hilrig.errors import HilrigError, StudyError
 from hilrig.recording.session import utc_iso
+from hilrig.recording.session_ids import written_as
 from hilrig.study.glance import glance
 from hilrig.study.kept import keep, read_kept
 
@@ -41,6 +45,8 @@ FLAGS = {
     "dropped": "the recorder dropped rows",
     "holds": "the robot held its pose on some ticks (stale data, a fault or a stop)",
     "missed": f"more than {MISSED_FLAG_PCT} % of the loop's deadlines were missed",
+    "duplicate-id": "another file of the study claims its session id (a copy, or an id of a "
+    "second's resolution): each is a session of its own, keyed ID@PATH",
 }
 #: One row per file, as stored (times as ns, settings and parameters as JSON text).
 FILE_COLUMNS = (
@@ -183,23 +189,49 @@ def describe(path: Path, name: str, size: int, mtime_ns: int) -> dict[str, objec
 def sessions(files: pd.DataFrame) -> pd.DataFrame:
     """The catalogue (:data:`CATALOGUE_COLUMNS`, ``excluded`` empty): one row per session, the
     parts of a split session joined, in the order of their first file's path."""
-    rows = [_session_row(group) for _, group in _by_session(files)]
+    rows = [_session_row(key, group, twin) for key, group, twin in _by_session(files)]
     frame = pd.DataFrame(rows, columns=list(CATALOGUE_COLUMNS))
     frame["condition"] = conditions(frame)
     return frame
 
 
-def _by_session(files: pd.DataFrame) -> Iterator[tuple[str, pd.DataFrame]]:
-    keys = files["session"].where(files["subject"].notna(), files["path"])  # unreadable: alone
-    for key in dict.fromkeys(keys):
-        yield key, files[keys == key].sort_values("part")
+def session_files(files: pd.DataFrame) -> dict[str, list[str]]:
+    """Each session's key (the catalogue's ``session``) and its files' paths in part order."""
+    return {key: list(group["path"]) for key, group, _ in _by_session(files)}
 
 
-def _session_row(parts: pd.DataFrame) -> dict[str, object]:
+def twins(catalogue: pd.DataFrame, session_id: str) -> list[str]:
+    """The keys of the sessions that claim ``session_id`` when several do (else none)."""
+    return [k for k in catalogue["session"].astype(str) if k.startswith(f"{session_id}@")]
+
+
+def _by_session(files: pd.DataFrame) -> Iterator[tuple[str, pd.DataFrame, bool]]:
+    """Each session's key, files (in part order) and whether another session claims its id, in
+    the order of their first file's path. A session's files are one file, or the parts one
+    writer split (same id, same folder and name but the part number); unreadable: alone."""
+    readable = files["subject"].notna()
+    origins = [
+        written_as(str(p), int(n)) for p, n in zip(files["path"], files["part"], strict=True)
+    ]
+    same = files["session"].astype(str) + "\0" + pd.Series(origins, files.index, dtype=str)
+    found = [
+        g.sort_values("part")
+        for _, g in files.groupby(same.where(readable, files["path"]), sort=False)
+    ]
+    claimed = pd.Series([str(g["session"].iloc[0]) for g in found if g["subject"].notna().iloc[0]])
+    claims = claimed.value_counts()
+    for group in found:
+        session, first = str(group["session"].iloc[0]), str(group["path"].iloc[0])
+        twin = bool(group["subject"].notna().iloc[0]) and claims.get(session, 0) > 1
+        yield (f"{session}@{first}" if twin else session), group, twin
+
+
+def _session_row(key: str, parts: pd.DataFrame, twin: bool) -> dict[str, object]:
     first, last = parts.iloc[0], parts.iloc[-1]
     readable = first["subject"] is not None and not pd.isna(first["subject"])
     flags = [] if readable else ["unreadable"]
     if readable:
+        flags += ["duplicate-id"] if twin else []
         flags += [] if bool(parts["complete"].all()) else ["incomplete"]
         flags += [] if bool(last["ended_cleanly"]) else ["unfinished"]
         flags += ["ended-early"] if last["ended_by"] else []
@@ -211,7 +243,7 @@ def _session_row(parts: pd.DataFrame) -> dict[str, object]:
     start, end = parts["start_ns"].min(), parts["end_ns"].max()
     timed = readable and not (pd.isna(start) or pd.isna(end))
     return {
-        "session": first["session"],
+        "session": key,
         "subject": first["subject"] if readable else "",
         "controller": first["controller"] if readable else "",
         "params": first["params"] if readable else "{}",

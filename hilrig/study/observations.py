@@ -28,7 +28,7 @@ from hilrig.analysis import DEFAULT_EVENTS, EventConfig, analyze, load_session, 
 from hilrig.analysis.compare import DEFAULT_VERDICTS
 from hilrig.analysis.verdict import VerdictConfig
 from hilrig.errors import HilrigError, OutputError
-from hilrig.study.catalogue import STORE
+from hilrig.study.catalogue import STORE, session_files
 from hilrig.study.kept import keep, read_kept
 from hilrig.study.records import STUDY_METRICS
 
@@ -67,9 +67,9 @@ def jobs(
 ) -> list[SessionJob]:
     """A job per catalogue row, its files (in part order) from the catalogue's file table."""
     found = []
+    parts = session_files(files)
     for session in catalogue["session"]:
-        parts = files[files["session"] == session].sort_values("part")["path"]
-        paths = tuple(root / str(p) for p in parts)
+        paths = tuple(root / p for p in parts[str(session)])
         stamp = [(p.name, p.stat().st_size, p.stat().st_mtime_ns) for p in paths]
         key = json.dumps([stamp, settings.key(), __version__])
         name = hashlib.sha1(str(session).encode()).hexdigest()[:20] + ".parquet"

@@ -25,7 +25,7 @@ import pandas as pd
 from hilrig.errors import SweepError
 from hilrig.replay.inputs import MCAP_SUFFIXES, TABLE_SUFFIXES
 from hilrig.replay.job import check_closed_input
-from hilrig.study.catalogue import STORE, index, recordings, sessions
+from hilrig.study.catalogue import STORE, index, recordings, session_files, sessions
 from hilrig.study.observations import AnalysisSettings, events_of, jobs
 from hilrig.study.study_file import STUDY_FILE, StudyFile, read_study
 
@@ -114,13 +114,12 @@ def study_inputs(root: Path) -> tuple[list[Input], str]:
     excluded = {e.session for e in study.exclusions if e.event is None}
     unreadable = set(catalogue.loc[catalogue["flags"].str.contains("unreadable"), "session"])
     kept = [s for s in catalogue["session"] if s not in excluded and s not in unreadable]
-    rows = files[files["session"].isin(kept) & files["subject"].notna()]
+    parts = session_files(files)
     windows, found, missing = _event_windows(root, catalogue, files, study, set(kept))
     chosen = [
-        Input((root / str(path)).resolve(), str(path), windows.get(str(session), ()))
-        for session, path in rows.sort_values(["session", "part"])[["session", "path"]].itertuples(
-            index=False
-        )
+        Input((root / path).resolve(), path, windows.get(session, ()))
+        for session in sorted(kept)
+        for path in parts[session]
     ]
     left = len(set(catalogue["session"]) & excluded)
     note = (

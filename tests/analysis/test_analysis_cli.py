@@ -109,6 +109,16 @@ def test_a_folder_of_sessions_becomes_a_partitioned_dataset(tmp_path: Path) -> N
     assert len(read_dataset(out)) == len(frame)
 
 
+def test_a_dataset_of_sessions_without_events_says_nothing_was_written(tmp_path: Path) -> None:
+    quiet = write_session(tmp_path / "quiet.mcap", subject_id="S001", session_id="q", duration_s=1)
+    assert analyze(load_session(quiet)).events == ()  # the paper's push starts later
+    out = tmp_path / "dataset"
+    printed = _analyze(str(quiet), "--out", str(out))
+    assert printed.splitlines()[-1] == f"no collision events in {quiet}: nothing written to {out}"
+    assert "wrote" not in printed
+    assert not out.exists()
+
+
 def test_expected_failures_are_one_line(tmp_path: Path) -> None:
     (tmp_path / "notes.txt").write_text("no")
     result = subprocess.run(
@@ -228,3 +238,21 @@ def test_a_comparison_that_fails_to_write_leaves_nothing(
     out = tmp_path / "comparison.csv"
     assert _refused(str(EXAMPLE), "--out", str(out)) == f"{out}: cannot write (disk full)"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_files_claiming_one_id_are_sessions_of_their_own(tmp_path: Path) -> None:
+    old_id = "20261207-165147"  # an id of a second's resolution, as two sessions once shared
+    for subject in ("S001", "S002"):
+        (tmp_path / subject).mkdir()
+        write_session(tmp_path / subject / "run.mcap", subject_id=subject, session_id=old_id)
+    (tmp_path / "S003").mkdir()
+    write_session(tmp_path / "S003" / "run.mcap", subject_id="S003", session_id="c", split_s=3.0)
+    sources = analysis.load_sources([tmp_path])
+    assert [(s.subject_id, s.session_id) for s in sources] == [
+        ("S001", old_id),
+        ("S002", old_id),
+        ("S003", "c"),  # its three parts, one session
+    ]
+    whole = load_session([tmp_path / "S001" / "run.mcap"])
+    for source in sources:
+        assert [len(r.t_s) for r in source.runs] == [len(r.t_s) for r in whole.runs]
