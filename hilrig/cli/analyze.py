@@ -129,12 +129,19 @@ def analyze_command(
         title = f"{len(sessions)} sessions: mean over events"
         console.print(comparison_table(across, baseline=base, title=title))
         tables.append(across)
-    if out is not None:
-        if dataset:
-            written = write_dataset(dataset_frame(analyses), out, overwrite=overwrite)
-        else:
-            written = write_table(tables, out, overwrite=overwrite)
-        console.print(f"wrote {written}", markup=False, soft_wrap=True)
+    if out is None:
+        return
+    frame = dataset_frame(analyses) if dataset else None
+    if frame is not None and frame.empty:  # a dataset holds events' metrics: none to hold
+        inputs = ", ".join(a.source.name for a in analyses)
+        line = f"no collision events in {inputs}: nothing written to {out}"
+        console.print(line, markup=False, soft_wrap=True)
+        return
+    if frame is not None:
+        written = write_dataset(frame, out, overwrite=overwrite)
+    else:
+        written = write_table(tables, out, overwrite=overwrite)
+    console.print(f"wrote {written}", markup=False, soft_wrap=True)
 
 
 def print_source(console: Console, analysis: Analysis, baseline: str, delta: float) -> pd.DataFrame:
