@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -98,7 +97,7 @@ def view_command(
     from hilrig.errors import ViewError
     from hilrig.outputs import new_files
     from hilrig.replay import parse_specs
-    from hilrig.viz import scene_from_session
+    from hilrig.viz import save_rrd, scene_from_session
 
     sink = _sink(save, overwrite, web, connect, port, web_port)
     console = Console(highlight=False, soft_wrap=True, markup=False)
@@ -113,7 +112,8 @@ def view_command(
         _show(console, sink, scene, max_points, max_poses)
         return
     with new_files(save, overwrite=overwrite) as (temporary,):  # whole, or nothing left
-        _show(console, replace(sink, path=temporary), scene, max_points, max_poses)
+        report = save_rrd(scene, temporary, max_points=max_points, max_poses=max_poses)
+    _print_report(console, report, scene.source)
     console.print(f"wrote {save}", markup=False, soft_wrap=True)
 
 
@@ -164,14 +164,10 @@ def _sink(
 
 
 def _flush(rec: RecordingStream, sink: Sink) -> None:
-    """Wait until the view has left: a file without limit, a viewer for FLUSH_S at most (a
-    viewer that went away is one line)."""
+    """Wait until the view has left, for FLUSH_S at most (a viewer that went away is one
+    line)."""
     from hilrig.errors import ViewError
-    from hilrig.viz.sinks import SinkKind
 
-    if sink.kind is SinkKind.SAVE:
-        rec.flush()
-        return
     try:
         rec.flush(timeout_sec=FLUSH_S)
     except Exception as err:  # Rerun's own error type for a viewer that does not take data

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import rerun as rr
 import rerun.blueprint as rrb
@@ -21,7 +20,7 @@ from hilrig.viz.log import (
     run_styles,
 )
 from hilrig.viz.scene import Scene
-from hilrig.viz.sinks import Sink, SinkKind, open_stream
+from hilrig.viz.sinks import APPLICATION_ID
 
 
 @dataclass(frozen=True)
@@ -96,17 +95,21 @@ def save_rrd(
     max_points: int = DEFAULT_MAX_POINTS,
     max_poses: int = DEFAULT_MAX_POSES,
 ) -> ViewReport:
-    """Write the view of ``scene`` to an ``.rrd`` file, layout included."""
-    rec, _ = open_stream(
-        Sink(SinkKind.SAVE, path=Path(path)),
-        layout(scene, max_points),
-        recording_id=recording_id(scene),
-    )
+    """Write the view of ``scene`` to a new ``.rrd`` file, layout included.
+
+    Rerun encodes the view in memory and hilrig writes the file, so a disk that refuses it
+    raises OSError here (Rerun's own file sink logs such a failure to the terminal, and
+    reports it without its reason)."""
+    rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id(scene))
+    stream = rr.binary_stream(recording=rec)
     try:
-        return show_scene(rec, scene, max_points=max_points, max_poses=max_poses)
+        rec.send_blueprint(layout(scene, max_points), make_active=False, make_default=True)
+        report = show_scene(rec, scene, max_points=max_points, max_poses=max_poses)
+        with open(path, "xb") as out:
+            out.write(stream.read(flush=True) or b"")
     finally:
-        rec.flush()
         rec.disconnect()
+    return report
 
 
 def recording_id(scene: Scene) -> str | None:
