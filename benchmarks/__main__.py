@@ -1,7 +1,9 @@
 """Run every ``benchmarks/bench_*.py`` (each exposes ``run() -> list[Result]``).
 
 Writes ``benchmarks/results/latest.json`` and prints a table. ``python -m benchmarks NAME ...``
-runs only the named suites (e.g. ``control``); ``--help`` lists them.
+runs only the named suites (e.g. ``control``); ``--help`` lists them. ``python -m benchmarks
+report`` writes docs/benchmarks.md and the README's table from the dated runs in
+``benchmarks/results`` (``benchmarks/report.py``).
 """
 
 from __future__ import annotations
@@ -29,6 +31,10 @@ def main(argv: list[str]) -> int:
         # started in the background by a script: SIGINT is ignored and every child would
         # inherit that, so the Rerun server the session suite stops with Ctrl-C would not stop
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    if argv[:1] == ["report"]:
+        from benchmarks.report import main as report
+
+        return report(argv[1:])
     suites = sorted(p.stem.removeprefix("bench_") for p in HERE.glob("bench_*.py"))
     if argv and argv[0] in ("-h", "--help"):
         print(f"{__doc__}\nThe suites: {' '.join(suites)}")
@@ -59,7 +65,9 @@ def main(argv: list[str]) -> int:
         "when_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "machine": {
             "python": platform.python_version(),
-            "cpu": platform.processor(),
+            "cpu": cpu_model(),
+            "kernel": f"Linux {platform.release()}",
+            "virtual": "virtual machine" if "hypervisor" in cpu_flags() else "",
             "cores": os.cpu_count(),
         },
         "suites": names,
@@ -69,6 +77,23 @@ def main(argv: list[str]) -> int:
     out.write_text(json.dumps(report, indent=2) + "\n")
     console.print(f"wrote {out}")
     return 0 if all(r.passed is not False for r in results) else 1
+
+
+def _cpuinfo(key: str) -> str:
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        return ""
+    return next((ln.split(":", 1)[1].strip() for ln in lines if ln.startswith(key)), "")
+
+
+def cpu_model() -> str:
+    """The CPU's model name, as the kernel reports it ("" where it does not)."""
+    return _cpuinfo("model name") or platform.processor()
+
+
+def cpu_flags() -> set[str]:
+    return set(_cpuinfo("flags").split())
 
 
 if __name__ == "__main__":
