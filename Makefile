@@ -10,7 +10,7 @@ TEST_WORKERS ?= 2
 CHROMIUM := /usr/bin/chromium
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: demo test lint typecheck bench lock clean
+.PHONY: demo test lint typecheck docs bench lock clean
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -21,7 +21,7 @@ $(STAMP): pyproject.toml constraints.txt
 demo: $(STAMP)  ## the main job: the paper table, then its collisions recorded on the emulated rig
 	$(BIN)/hilrig demo --out $(OUT)/demo
 
-test: lint typecheck $(CHROMIUM)  ## lint, type-check and run every test
+test: lint typecheck docs $(CHROMIUM)  ## lint, type-check, build the docs site and run every test
 	$(BIN)/python -m pytest -n $(TEST_WORKERS)
 
 # One install at a time: two `make test` started together on a fresh machine would otherwise race
@@ -38,6 +38,9 @@ lint: $(STAMP)
 
 typecheck: $(STAMP)
 	$(BIN)/mypy
+
+docs: $(STAMP)  ## the docs site in $(OUT)/site (mkdocs.yml; strict: a broken link or reference fails)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir $(OUT)/site
 
 bench: $(STAMP)  ## benchmarks; results in benchmarks/results/latest.json
 	$(BIN)/python -m benchmarks
