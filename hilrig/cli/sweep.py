@@ -111,7 +111,7 @@ def sweep_command(
     from rich.console import Console
 
     from hilrig.cli.sweep_table import summary_tables
-    from hilrig.errors import SweepError
+    from hilrig.errors import DiskError, SweepError
     from hilrig.replay.specs import parse_specs
     from hilrig.sweep import find_inputs, plan
     from hilrig.sweep import sweep as run_sweep
@@ -148,9 +148,12 @@ def sweep_command(
     if summary.by_run.empty:
         console.print("no collisions in any source: no summary" + (", no report" if report else ""))
     elif report is not None:
-        console.print(
-            f"wrote {write_sweep_report(summary, specs, report, overwrite=overwrite_report)}"
-        )
+        try:
+            written = write_sweep_report(summary, specs, report, overwrite=overwrite_report)
+        except DiskError as err:
+            err.add_note(f"the sweep's results are written in {summary.root}")
+            raise
+        console.print(f"wrote {written}", markup=False)
 
 
 def _summary(summary: SweepSummary, sources: int, runs: int) -> str:

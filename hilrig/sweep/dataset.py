@@ -28,7 +28,7 @@ import pyarrow.compute as pc
 import pyarrow.dataset as ds
 import pyarrow.parquet as pq
 
-from hilrig.errors import OutputError, SweepError
+from hilrig.errors import DiskError, OutputError, SweepError
 from hilrig.outputs import new_files
 from hilrig.replay.outputs import parquet_into
 from hilrig.replay.specs import ControllerSpec
@@ -78,6 +78,22 @@ class Layout:
                     parquet_into(plain, temporaries[1], shown_as=paths[1])
         except (OSError, pa.ArrowException) as err:
             raise SweepError(f"{paths[0].parent}: cannot write the results ({err})") from err
+
+    def remove_empty(self, *, manifest: bool, root: bool) -> bool:
+        """After a failed sweep, remove its empty partition folders and, when no partition is
+        left, the ``manifest`` it wrote and the ``root`` folder it made; whether any result
+        is left."""
+        folders = [p for kind in (METRICS, TABLES) for p in (self.root / kind).glob("**")]
+        for folder in sorted(folders, key=lambda p: len(p.parts), reverse=True):
+            with suppress(OSError):
+                folder.rmdir()  # only when empty
+        left = any((self.root / kind).exists() for kind in (METRICS, TABLES))
+        if not left and manifest:
+            (self.root / MANIFEST).unlink(missing_ok=True)
+        if not left and root:
+            with suppress(OSError):
+                self.root.rmdir()
+        return left
 
     def remove_temporaries(self) -> int:
         """Remove the temporaries killed workers left; how many there were."""
@@ -160,6 +176,8 @@ def prepare(
     try:
         with new_files(manifest, overwrite=True, create_folders=True) as (temporary,):
             temporary.write_text(json.dumps(document, indent=1, sort_keys=True) + "\n")
+    except DiskError:  # says what to do itself
+        raise
     except OutputError as err:
         raise SweepError(f"--out {root}: {err}") from err
 

@@ -15,14 +15,15 @@ the sweep then raises SweepError naming the first, and a rerun retries only the 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Generator, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
 
-from hilrig.errors import SweepError
-from hilrig.sweep.dataset import METRICS, Layout, describe_runs, prepare
+from hilrig.errors import DiskError, SweepError
+from hilrig.outputs import DISK_ERRORS
+from hilrig.sweep.dataset import MANIFEST, METRICS, Layout, describe_runs, prepare
 from hilrig.sweep.engines import ENGINES, local_results, ray_results
 from hilrig.sweep.summary import Tally, read_tally
 from hilrig.sweep.tasks import Task, TaskResult
@@ -75,7 +76,8 @@ def sweep(
     processes, default one per core; ``ray``: the cluster at ``address``, else RAY_ADDRESS, else
     a local instance of ``workers`` CPUs). ``on_result`` sees each result as it comes. Raises
     SweepError for a folder that holds another sweep, an engine that cannot start, or tasks
-    that failed (after running all the others)."""
+    that failed (after running all the others); DiskError at the first task whose results a
+    disk refused (no other task starts; what this sweep made and left empty is removed)."""
     from hilrig.replay.engine import local_cores
 
     if engine not in ENGINES:
@@ -84,6 +86,7 @@ def sweep(
     specs = {task.spec.name: task.spec for task in tasks}
     excluded = {t.source: [[e.group, e.start_ns, e.end_ns] for e in t.excluded] for t in tasks}
     closed = any(t.closed_loop for t in tasks)
+    made_root, made_manifest = not root.exists(), not (root / MANIFEST).exists()
     prepare(root, describe_runs(specs.values()), closed_loop=closed, excluded=excluded)
     layout = Layout(root)
     todo = [t for t in tasks if not layout.done(t.source, t.run, tables=tables)]
@@ -102,6 +105,9 @@ def sweep(
     collected: list[TaskResult] = []
     for result in results:
         collected.append(result)
+        if result.disk_errno:  # every other task would meet the same disk
+            _stop(results)
+            break
         finished += 1
         if result.skipped:
             _add_written(runs_tally, layout, result.source, result.run)
@@ -111,6 +117,11 @@ def sweep(
             on_result(result)
         if progress is not None:
             progress(finished, len(tasks))
+    refused = next((r for r in collected if r.disk_errno), None)
+    if refused is not None:
+        layout.remove_temporaries()
+        layout.remove_empty(manifest=made_manifest, root=made_root)
+        raise DiskError(_disk_message(refused, collected, len(todo), root))
     failed = [r for r in collected if r.error]
     owed = {(t.source, t.run) for t in todo}
     for task in tasks:  # after the new work, so that a damaged old partition delays none of it
@@ -143,3 +154,23 @@ def sweep(
 def _add_written(by_run: Tally, layout: Layout, source: str, run: str) -> None:
     """Add to ``by_run`` the metrics a task wrote before (its result carries no tallies)."""
     by_run.add(run, source, *read_tally(layout.partition(METRICS, source, run), source))
+
+
+def _stop(results: Iterator[TaskResult]) -> None:
+    """End an engine's results: its pool drops the tasks not started (running ones finish)."""
+    if isinstance(results, Generator):
+        results.close()
+
+
+def _disk_message(refused: TaskResult, results: Sequence[TaskResult], todo: int, root: Path) -> str:
+    """One line for a sweep whose disk refused ``refused``'s results: what, where, what of
+    this run is kept (whole tasks, which a rerun skips), what to do."""
+    meaning, remedy = DISK_ERRORS[refused.disk_errno]
+    written = sum(1 for r in results if not r.error and not r.skipped)
+    what = f"could not write the results of source {refused.source}, run {refused.run} ({root})"
+    if not written:
+        return f"{meaning}: {what}: nothing was written; {remedy}"
+    return (
+        f"{meaning}: {what}: {written} of {todo} tasks were written whole before it; "
+        f"{remedy.removesuffix(' and run again')} and run the same command again for the rest"
+    )

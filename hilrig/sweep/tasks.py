@@ -25,7 +25,8 @@ import pandas as pd
 
 from hilrig.analysis import Source, SourceKind, analyze, metrics_frame, runs_from_frame
 from hilrig.analysis.sources import KNOWN_AXES
-from hilrig.errors import HilrigError
+from hilrig.errors import DiskError, HilrigError
+from hilrig.outputs import disk_errno
 from hilrig.replay import ForceTrace
 from hilrig.replay.job import Replayed, closed_replay_file, replay_trace
 from hilrig.replay.results import INPUT_KEY
@@ -70,6 +71,7 @@ class TaskResult:
     worker: str = ""  # host:pid
     node: str = ""  # the Ray node id (ray engine)
     error: str = ""
+    disk_errno: int = 0  # the disk refused its partitions (:data:`hilrig.outputs.DISK_ERRORS`)
     skipped: bool = False
     subject: str = ""  # the source's subject (:func:`.summary.subject_of`)
     tallies: tuple[GroupTally, ...] = ()  # its events, for the sweep's summary
@@ -118,7 +120,8 @@ def run_task(task: Task, root: Path, *, tables: bool = False) -> TaskResult:
         layout.write(task.source, task.run, metrics, replayed.table if tables else None)
     except HilrigError as err:
         message = " ".join(str(err).split())
-        return TaskResult(task.source, task.run, worker=worker, error=message)
+        code = (disk_errno(err) or 0) if isinstance(err, DiskError) else 0
+        return TaskResult(task.source, task.run, worker=worker, error=message, disk_errno=code)
     seconds = time.perf_counter() - began
     subject = subject_of(metrics, task.source)
     return TaskResult(
