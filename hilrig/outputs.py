@@ -41,8 +41,8 @@ DISK_ERRORS: dict[int, tuple[str, str]] = {
     errno.ENOSPC: ("the disk is full", "free space and run again"),
     errno.EDQUOT: ("the disk quota is exceeded", "free space (or raise the quota) and run again"),
     errno.EFBIG: (
-        "a file is larger than its file system allows",
-        "write to another file system and run again",
+        "a file is larger than allowed (by its file system, or the process's limit)",
+        "write it elsewhere (or raise the limit) and run again",
     ),
     errno.EIO: ("the disk failed to write (I/O error)", "check the disk and run again"),
 }
