@@ -2,7 +2,7 @@
 
 Layout (hive partitioning, one directory level per key)::
 
-    ROOT/subject_id=S001/controller=adaptive/session_id=20261122-050650/part-0.parquet
+    ROOT/subject_id=S001/controller=adaptive/session_id=01KCQ4X2ZJ8M3N6P9R1T5V7W0Y/part-0.parquet
 
 Each row is one run's metrics for one collision event on one axis (the columns of
 :func:`~hilrig.analysis.compare.metrics_frame`) with the session's metadata: rig, UTC start,
