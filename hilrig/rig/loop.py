@@ -198,6 +198,7 @@ class ControlLoop:
         self._acknowledged = targets.stats.written
         self._playing = False
         self._t0_ns = 0
+        self._task_ticks, self._task_dt_s = 0, 1.0 / config.rate_hz
         self._last_start_ns = 0
         self._last_nominal_ns = 0
         self.ended_by = ""  # why the watchdog ended the session ("" if it did not)
@@ -279,12 +280,13 @@ class ControlLoop:
             self._command_errors = targets.errors
             self._words[HOLD_UNTIL_NS] = start_ns + COMMAND_FAULT_HOLD_NS
             self._events.fault(COMMAND_LINK, str(targets.last_error), start_ns)
-        # the task is sampled at the tick's nominal time, not its jittery start, so the
-        # commanded path is as smooth as the controller's fixed dt assumes
-        t_s = (nominal_ns - self._t0_ns) / 1e9
-        self._desired(t_s)
+        # the task advances one period a tick, as the controller and the clamp count time: a
+        # late tick or frames read together slow it down instead of making it jump (a jump
+        # is a step the clamp cuts at its acceleration limit, docs/rig.md)
+        self._task_ticks += 1
+        self._desired(self._task_ticks * self._task_dt_s)
         if self._virtual is not None:
-            self._play(t_s, nominal_ns)
+            self._play((nominal_ns - self._t0_ns) / 1e9, nominal_ns)
         # freshness, flags, the compiled tick and what changed, in one call (tick/loop_step.py)
         result = self._step(start_ns)
         fresh = result & FRESH and not result & HELD

@@ -55,8 +55,6 @@ from hilrig.rig.session_config import SessionConfig
 from hilrig.rig.warm_up import warm_up
 from hilrig.robot import RobotModel
 from hilrig.tick.links import ROBOT_LINK, SENSOR_LINK
-from hilrig.tick.safety import SafetyClamp, SafetyConfig
-from hilrig.tick.trajectory import make_trajectory
 from hilrig.timing import freeze_heap
 from hilrig.world.scenarios import settings_of
 
@@ -170,12 +168,13 @@ def record_session(
         start_pose = model.fk(q0)
         compensator = GravityCompensator(config.tool)
         compensator.tare(_average_wrench(devices, config.tare_s), start_pose[:3, :3])
+        trajectory, safety = config.task(model, q0)  # a task the clamp would cut is refused
         loop = ControlLoop(
             config.loop,
             io=devices,
             compensator=compensator,
-            trajectory=make_trajectory(config.trajectory, start_pose, **config.trajectory_options),
-            safety=SafetyClamp(SafetyConfig(dt_s=1.0 / config.loop.rate_hz), model, q0),
+            trajectory=trajectory,
+            safety=safety,
             model=model,
             on_event=collect,
             virtual=config.virtual,

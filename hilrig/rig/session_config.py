@@ -13,9 +13,10 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from hilrig.drivers.ft.gravity import ToolLoad
-from hilrig.emulator.rig import RigEndpoints
+from hilrig.emulator.rig import HOME_Q_RAD, RigEndpoints
 from hilrig.errors import HilrigError
 from hilrig.machine import Setting, port_settings, read_settings
 from hilrig.recording import Attachment, validate_subject_id
@@ -25,7 +26,10 @@ from hilrig.rig.config_file import check_recording_path
 from hilrig.rig.kinds import RigKind, RobotLinkKind
 from hilrig.rig.loop import LoopConfig
 from hilrig.rig.virtual import VirtualInput
-from hilrig.tick.trajectory import make_trajectory
+from hilrig.robot import RobotModel
+from hilrig.tick.safety import SafetyClamp, SafetyConfig
+from hilrig.tick.task_limits import check_task
+from hilrig.tick.trajectory import Trajectory, make_trajectory
 from hilrig.timing import check_cpu
 from hilrig.world.body import body_region
 from hilrig.world.scenarios import DEFAULT_BODY_REGION, Scenario
@@ -88,6 +92,8 @@ class SessionConfig:
         validate_subject_id(self.subject_id)
         self.volunteer()
         make_trajectory(self.trajectory, np.eye(4), **self.trajectory_options)
+        if self.rig is RigKind.EMULATED:  # its start is known now: the task is checked from it
+            self.task(RobotModel(), np.array(HOME_Q_RAD))
         self.loop.controller()
         if self.body_region:
             body_region(self.body_region)
@@ -96,6 +102,18 @@ class SessionConfig:
             raise HilrigError(f"contact area {area:g} cm^2: must be a finite area > 0")
         check_recording_path(self.out)
         check_cpu(self.loop.cpu)
+
+    def task(
+        self, model: RobotModel, q0_rad: NDArray[np.float64]
+    ) -> tuple[Trajectory, SafetyClamp]:
+        """The task from the start joints ``q0_rad`` (rad) and the safety clamp it runs under;
+        ParameterError (one line) for a task that would leave the clamp's limits, with margin,
+        within the session (:mod:`hilrig.tick.task_limits`)."""
+        safety = SafetyClamp(SafetyConfig(dt_s=1.0 / self.loop.rate_hz), model, q0_rad)
+        start_pose = model.fk(q0_rad)
+        trajectory = make_trajectory(self.trajectory, start_pose, **self.trajectory_options)
+        check_task(self.trajectory, trajectory, safety, self.duration_s)
+        return trajectory, safety
 
     def region(self) -> str:
         """The body region the session records: the one given, else the emulated scenario's

@@ -1,9 +1,12 @@
-"""Joint limits of the AUBO-i5: position, velocity and acceleration, per joint J1..J6.
+"""Joint limits of the AUBO-i5: position, velocity, acceleration and jerk, per joint J1..J6.
 
 Position and velocity limits are AUBO's published numbers (docs/rig.md). AUBO publishes
 no joint acceleration limits; the values here are hilrig's conservative choice: about one second
 from rest to full speed on every joint, far below what the drives can do, because the safety
-clamp uses them to bound every commanded step whatever the controller asks.
+clamp uses them to bound every commanded step whatever the controller asks. Nor does AUBO
+publish jerk limits; the clamp bounds none (its controlled stop brakes at full acceleration at
+once), but hilrig's task trajectories keep below these (full acceleration built up in 0.1 s at
+the least), so the motion they ask for is smooth (:mod:`hilrig.tick.task_limits`).
 """
 
 from __future__ import annotations
@@ -20,16 +23,18 @@ Six = tuple[float, float, float, float, float, float]
 
 @dataclass(frozen=True)
 class JointLimits:
-    """Symmetric or asymmetric limits of six joints, in rad, rad/s and rad/s^2.
+    """Symmetric or asymmetric limits of six joints, in rad, rad/s, rad/s^2 and rad/s^3.
 
     Raises :class:`~hilrig.errors.ParameterError` if a lower bound is not below its upper bound
-    or a velocity or acceleration limit is not positive.
+    or a velocity, acceleration or jerk limit is not positive.
     """
 
     position_min_rad: Six
     position_max_rad: Six
     velocity_max_rad_s: Six
     acceleration_max_rad_s2: Six
+    # not published by AUBO either: kept by the tasks, not the clamp (see module docstring)
+    jerk_max_rad_s3: Six = (30.0, 30.0, 30.0, 30.0, 30.0, 30.0)
 
     def __post_init__(self) -> None:
         for j, (lo, hi) in enumerate(
@@ -37,7 +42,7 @@ class JointLimits:
         ):
             if not lo < hi:
                 raise ParameterError(f"joint {j + 1}: position_min_rad {lo} >= max {hi}")
-        for name in ("velocity_max_rad_s", "acceleration_max_rad_s2"):
+        for name in ("velocity_max_rad_s", "acceleration_max_rad_s2", "jerk_max_rad_s3"):
             values: Six = getattr(self, name)
             if not all(v > 0 for v in values):
                 raise ParameterError(f"JointLimits.{name}: every value must be > 0, got {values}")

@@ -208,6 +208,11 @@ class SafetyClamp:
         return self._limits, self._box, self._state
 
     @property
+    def model(self) -> RobotModel:
+        """The robot model whose TCP the workspace test places."""
+        return self._model
+
+    @property
     def q_rad(self) -> NDArray[np.float64]:
         """The last commanded joints (6,), rad: a read-only view that follows every tick."""
         return self._q_view

@@ -26,6 +26,9 @@ Registry (``TRAJECTORIES``):
   minimum-jerk between them, at rest at each; it stays at the last point.
 - ``hold``: the start pose.
 
+A session runs a task only if it keeps inside the safety clamp's limits with margin
+(:mod:`hilrig.tick.task_limits`); the loop samples it at t = k periods on tick k.
+
 ``desired`` creates no arrays. ``make_trajectory`` raises
 :class:`~hilrig.errors.ParameterError` with a one-line message for an unknown name, an unknown
 option, a bad option value or a start pose that is not a rigid transform.
