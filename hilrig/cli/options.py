@@ -20,9 +20,10 @@ SCENARIO_NAMES = ("hand-contact", "none", "paper-body", "paper-end-effector")
 #: hilrig.world.scenarios.settings_help(): every scenario's settings, for record --help.
 SCENARIO_SETTINGS_HELP = (
     "hand-contact: direction_in_base=0,1,0 (the push's direction, base frame, x,y,z); "
-    "start_s=2 (when the hand starts to move, s); gap_m=0.05 (the hand's start short of the "
-    "tool, m); depth_m=0.03 (how far past the tool it goes, m); speed_m_s=0.1 (its approach "
-    "and withdrawal speed, m/s); hold_s=1 (how long it holds at its depth, s); "
+    "start_s=2 (when the hand starts to move, s); gap_m=0.05 (how far short of the tool the "
+    "hand waits, m); depth_m=0.03 (how far past where it meets the tool it goes, m); "
+    "speed_m_s=0.1 (its approach and withdrawal speed, m/s); hold_s=1 (how long it holds at "
+    "its depth, s); "
     "stiffness_n_m=300 (the hand's stiffness, N/m); damping_n_s_m=10 (the hand's damping, "
     "N*s/m); contact_point_in_sensor=0,0,0.1 (where it pushes, sensor frame, x,y,z, m); "
     "period_s=10 (repeat the collision every this many s; none: once). none: no settings. "

@@ -16,9 +16,9 @@ the values a session records.
 - ``paper-end-effector``: eq. 15-17 at the tool (the paper applies them in the end-effector
   frame), collision from 4 s to 6 s.
 - ``paper-body``: eq. 18-19 on joints 1 and 2, collision from 3.5 s to 5.5 s.
-- ``hand-contact``: a hand, modelled as a spring-damper plane, moves into the tool's path,
-  holds, and withdraws; the force depends on how far the robot has yielded, so the loop is
-  closed through the person.
+- ``hand-contact``: a hand, modelled as a spring-damper plane, comes to the tool wherever the
+  task has moved it, presses into it, holds, and withdraws; the force depends on how far the
+  robot has yielded, so the loop is closed through the person.
 """
 
 from __future__ import annotations
@@ -115,11 +115,15 @@ class PaperBody:
 class HandContact:
     """A hand pushing the tool along ``direction_in_base``, as a spring-damper plane.
 
-    The hand plane starts ``gap_m`` short of the tool's position at rig start, moves at
-    ``speed_m_s`` to ``depth_m`` past it from ``start_s``, holds ``hold_s``, and withdraws. In
-    contact (penetration > 0) it pushes with ``stiffness_n_m * penetration + damping_n_s_m *
-    penetration rate`` (never pulls) at ``contact_point_in_sensor`` (m), so the sensor also sees
-    the moment of that force. The robot's yielding reduces the penetration: closed loop.
+    The hand plane stays ``gap_m`` short of the tool, following it as the task moves it, until
+    ``start_s``; then it closes in at ``speed_m_s``. From the moment it reaches the tool it moves
+    on alone, on a fixed line from where it met the tool: to ``depth_m`` past that point, holds
+    ``hold_s``, and withdraws at ``speed_m_s``; once back short of the tool it follows it again.
+    So it meets the tool on any task, and where the tool goes after that (yielding, or the
+    task's own motion) changes how far the hand presses in. In contact (penetration > 0) it
+    pushes with ``stiffness_n_m * penetration + damping_n_s_m * penetration rate`` (never
+    pulls) at ``contact_point_in_sensor`` (m), so the sensor also sees the moment of that force.
+    The robot's yielding reduces the penetration: closed loop.
     """
 
     direction_in_base: tuple[float, float, float] = field(
@@ -127,8 +131,10 @@ class HandContact:
         metadata=_doc("the push's direction, base frame, x,y,z"),
     )
     start_s: float = field(default=2.0, metadata=_doc("when the hand starts to move, s"))
-    gap_m: float = field(default=0.05, metadata=_doc("the hand's start short of the tool, m"))
-    depth_m: float = field(default=0.03, metadata=_doc("how far past the tool it goes, m"))
+    gap_m: float = field(default=0.05, metadata=_doc("how far short of the tool the hand waits, m"))
+    depth_m: float = field(
+        default=0.03, metadata=_doc("how far past where it meets the tool it goes, m")
+    )
     speed_m_s: float = field(default=0.1, metadata=_doc("its approach and withdrawal speed, m/s"))
     hold_s: float = field(default=1.0, metadata=_doc("how long it holds at its depth, s"))
     stiffness_n_m: float = field(default=300.0, metadata=_doc("the hand's stiffness, N/m"))
@@ -138,7 +144,7 @@ class HandContact:
     )
     period_s: float | None = field(default=10.0, metadata=_doc(PERIOD_DOC))
     name: str = field(default="hand-contact", init=False)
-    _origin: tuple[float, float, float] | None = field(default=None, init=False, repr=False)
+    _met_m: float | None = field(default=None, init=False, repr=False)
     _last: tuple[float, float] | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -160,7 +166,8 @@ class HandContact:
         return self.start_s + 2 * (self.gap_m + self.depth_m) / self.speed_m_s + self.hold_s
 
     def hand_offset_m(self, t_s: float) -> float:
-        """Where the hand plane is along the push direction, m past the tool's start position."""
+        """Where the hand plane is along the push direction, m past where it meets the tool
+        (negative: short of the tool, which it then follows)."""
         t = _local(t_s, self.period_s) - self.start_s
         travel_s = (self.gap_m + self.depth_m) / self.speed_m_s
         if t <= 0:
@@ -183,11 +190,11 @@ class HandContact:
             py + r10 * cx + r11 * cy + r12 * cz,
             pz + r20 * cx + r21 * cy + r22 * cz,
         )
-        if self._origin is None:
-            self._origin = contact
-        ox, oy, oz = self._origin
-        tool_along_m = (contact[0] - ox) * ux + (contact[1] - oy) * uy + (contact[2] - oz) * uz
-        penetration_m = self.hand_offset_m(t_s) - tool_along_m
+        tool_m = contact[0] * ux + contact[1] * uy + contact[2] * uz  # along the push
+        offset_m = self.hand_offset_m(t_s)
+        if offset_m <= 0.0 or self._met_m is None:  # short of the tool: it follows the tool
+            self._met_m = tool_m
+        penetration_m = offset_m - (tool_m - self._met_m)
         rate_m_s = 0.0
         if self._last is not None and t_s > self._last[0]:
             rate_m_s = (penetration_m - self._last[1]) / (t_s - self._last[0])
