@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from hilrig.compiled import njit
 from hilrig.errors import ParameterError
-from hilrig.robot import CompiledChain, ik_into, ik_work
+from hilrig.robot import IK_ERRORS, CompiledChain, ik_into, ik_work
 from hilrig.tick.clamp_kernels import AMAX, HI, LO, REACH
 from hilrig.tick.safety import SafetyClamp
 from hilrig.tick.trajectory import Circle, Trajectory
@@ -37,6 +37,7 @@ TASK_MARGIN = 0.8  # of each joint's velocity, acceleration and jerk limit
 CHUNK = 8192  # samples per compiled call
 IK_TOLERANCE = 1e-12  # m and rad: far below a tick's step, so the differences are the path's
 IK_ITERATIONS = 50
+REACHED = 1e-8  # m and rad: the tick's own tolerance; a pose IK cannot meet to this is out of reach
 REACH_FAILED, POSITION_FAILED, BOX_FAILED = 1, 2, 3
 QUANTITIES = (("velocity", "rad/s"), ("acceleration", "rad/s^2"), ("jerk", "rad/s^3"))
 HINTS = {
@@ -161,8 +162,9 @@ def joint_peaks(
     for k in range(samples):
         for r in range(3):
             goal[r, 3] = positions[k, r]
-        if ik_into(frames, axes, joint_limits, goal, q, IK_ITERATIONS, IK_TOLERANCE,
-                   IK_TOLERANCE, 1e-4, 0.5, work) < 0:  # fmt: skip
+        code = ik_into(frames, axes, joint_limits, goal, q, IK_ITERATIONS, IK_TOLERANCE,
+                       IK_TOLERANCE, 1e-4, 0.5, work)  # fmt: skip
+        if code < 0 and not max(work[IK_ERRORS, 0], work[IK_ERRORS, 1]) <= REACHED:
             return k
         reason, rho = 0, 0.0
         for j in range(q.shape[0]):
