@@ -110,12 +110,19 @@ def sweep_command(
     subjects of each subject's mean, each event on its loaded axis (docs/sweeps.md)."""
     from rich.console import Console
 
-    from hilrig.cli.sweep_table import summary_tables
     from hilrig.errors import DiskError, SweepError
+    from hilrig.ray_address import check_reachable, cluster_address, require_ray
+
+    if engine is EngineOption.RAY:  # first: in seconds, before the heavy imports below
+        require_ray()
+        check_reachable(cluster_address(address))
+    elif address is not None:
+        raise SweepError("--address: only with --engine ray")
+
+    from hilrig.cli.sweep_table import summary_tables
     from hilrig.replay.specs import parse_specs
     from hilrig.sweep import find_inputs, plan
     from hilrig.sweep import sweep as run_sweep
-    from hilrig.sweep.engines import check_reachable, cluster_address, import_ray
     from hilrig.sweep.report import check_report, write_sweep_report
 
     console = Console(highlight=False, soft_wrap=True)
@@ -123,11 +130,6 @@ def sweep_command(
     specs = parse_specs(controller or [], setting or [], sweep or [])  # refused before any work
     if report is not None:
         check_report(report, overwrite=overwrite_report)
-    if engine is EngineOption.RAY:
-        import_ray()
-        check_reachable(cluster_address(address))
-    elif address is not None:
-        raise SweepError("--address: only with --engine ray")
     inputs = find_inputs(sources, closed_loop=closed_loop)
     for note in inputs.notes:
         console.print(note)

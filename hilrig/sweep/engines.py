@@ -18,7 +18,6 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
-import socket
 import sys
 import warnings
 from collections.abc import Generator, Iterator, Sequence
@@ -31,6 +30,7 @@ from typing import Any
 
 from hilrig.errors import SweepError
 from hilrig.libc import linux_libc
+from hilrig.ray_address import INSTALL_HINT, check_reachable, cluster_address
 from hilrig.sweep.tasks import Task, TaskResult, run_task, warm_up
 
 ENGINES = ("local", "ray")
@@ -40,9 +40,9 @@ ENGINES = ("local", "ray")
 MAX_RETRIES = 3
 #: Tasks submitted to Ray at once, per CPU of the cluster.
 IN_FLIGHT_PER_CPU = 2
-#: Seconds to wait for an --address to answer before calling it unreachable.
-CONNECT_TIMEOUT_S = 5.0
-INSTALL_HINT = "pip install 'hilrig[ray]'"
+#: Ray's own C++ log lines on the terminal: errors only (its warnings are retries hilrig
+#: reports itself), unless RAY_BACKEND_LOG_LEVEL says otherwise.
+RAY_LOG_LEVEL = "error"
 PR_SET_PDEATHSIG = 1  # Linux prctl: the signal a process gets when its parent ends
 
 
@@ -128,36 +128,13 @@ def _worker_init() -> None:
 def import_ray() -> ModuleType:
     """The ``ray`` module; SweepError (one line, how to install it) when it is not installed."""
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")  # no usage reports unless asked
+    os.environ.setdefault("RAY_BACKEND_LOG_LEVEL", RAY_LOG_LEVEL)
     try:
         import ray
     except ImportError:
         message = f"--engine ray needs Ray, which is not installed: {INSTALL_HINT}"
         raise SweepError(message) from None
     return ray
-
-
-def cluster_address(address: str | None) -> str | None:
-    """The cluster to join: ``address``, else ``RAY_ADDRESS``, else None (a local instance)."""
-    return address or os.environ.get("RAY_ADDRESS") or None
-
-
-def check_reachable(address: str | None) -> None:
-    """Refuse, in one line, a ``HOST:PORT`` address (``ray://`` too) where nothing answers;
-    ``auto`` and no address are left to Ray."""
-    if address is None or address == "auto":
-        return
-    shown = address if address == os.environ.get("RAY_ADDRESS") else f"--address {address}"
-    host, sep, port = address.removeprefix("ray://").rpartition(":")
-    if not sep or not port.isdigit() or not host:
-        raise SweepError(f"{shown}: expected HOST:PORT of a Ray head (e.g. 10.0.0.5:6379)")
-    try:
-        socket.create_connection((host.strip("[]"), int(port)), CONNECT_TIMEOUT_S).close()
-    except OSError as err:
-        reason = err.strerror or type(err).__name__
-        raise SweepError(
-            f"{shown}: no Ray cluster answers there ({reason}); start one with "
-            "`ray start --head`, or check the address"
-        ) from None
 
 
 def ray_results(
