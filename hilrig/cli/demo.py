@@ -87,7 +87,7 @@ def demo(
         console.print(Text.assemble((f"session {session.scenario}", "bold"), about))
         result = record(session, out)
         print_result(console, result)
-        problem = "; ".join(filter(None, (result.ended_by, result.recorder_error)))
+        problem = "; ".join(filter(None, (result.fault, result.recorder_error)))
         if problem:
             raise HilrigError(f"session {session.scenario} ended early: {problem}")
         peaks[session.scenario] = peak_offsets(result.path)
@@ -110,11 +110,11 @@ def record(session: DemoSession, out: Path) -> SessionResult:
     """``session`` recorded on the emulated rig to ``out/<scenario>.mcap``; Ctrl-C or SIGTERM
     ends it cleanly (the recording is kept), then the demo stops (KeyboardInterrupt)."""
     import signal
-    import threading
 
     from hilrig.cli.errors import print_waiting
     from hilrig.recording.session_ids import new_session_id
     from hilrig.rig import LoopConfig, SessionConfig, record_session
+    from hilrig.rig.stop import SessionStop
 
     config = SessionConfig(
         out=out / f"{session.scenario}.mcap",
@@ -125,8 +125,8 @@ def record(session: DemoSession, out: Path) -> SessionResult:
         loop=LoopConfig(),
         session_id=new_session_id(),
     )
-    stop = threading.Event()
-    before = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    stop = SessionStop()  # says which signal ended the session: its file's ended_by
+    before = {s: signal.signal(s, stop.on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         result = record_session(config, stop=stop, on_wait=print_waiting)
     finally:

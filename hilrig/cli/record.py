@@ -26,6 +26,9 @@ if TYPE_CHECKING:
     from hilrig.viz.live import LiveView
     from hilrig.viz.sinks import Sink
 
+#: The longest session without --long (24 h).
+LONG_SESSION_S = 86_400.0
+
 
 @app.command()
 def record(
@@ -91,7 +94,12 @@ def record(
             help="The contact's area, cm^2 (default: the standard's probe, 1.96).",
         ),
     ] = None,
-    duration: Annotated[float, typer.Option(help="Seconds; Ctrl-C ends earlier, cleanly.")] = 20.0,
+    duration: Annotated[
+        float, typer.Option(help="Seconds (over 24 h with --long); Ctrl-C ends earlier, cleanly.")
+    ] = 20.0,
+    long: Annotated[
+        bool, typer.Option("--long", help="Allow a --duration over 24 h (86400 s).")
+    ] = False,
     rate: Annotated[float, typer.Option(help="Loop rate, Hz (the paper used 500).")] = 1000.0,
     cpu: Annotated[
         int | None,
@@ -101,7 +109,9 @@ def record(
             "Default: the OS places the thread too (docs/rig.md, 'Placing the loop').",
         ),
     ] = None,
-    out: Annotated[Path | None, typer.Option(help="The MCAP file to write.")] = None,
+    out: Annotated[
+        Path | None, typer.Option(help="The MCAP file to write (a new file, NAME.mcap).")
+    ] = None,
     view: Annotated[
         bool,
         typer.Option(
@@ -127,21 +137,27 @@ def record(
 ) -> None:
     """Run the admittance controller in the loop with the rig and record every stream."""
     import signal
-    import threading
 
     from hilrig.cli.errors import print_waiting, print_warning
     from hilrig.cli.robot_options import arcs_settings, real_endpoints
     from hilrig.cli.session_output import (
         SessionWatch,
+        disk_failure_line,
         print_result,
         print_verdict,
         summary_console,
     )
-    from hilrig.errors import HilrigError
+    from hilrig.errors import DiskError, HilrigError
     from hilrig.recording.session_ids import new_session_id
     from hilrig.rig import LoopConfig, SessionConfig, record_session
     from hilrig.rig.config_file import RigFile, read_rig_file, session_path
+    from hilrig.rig.stop import SessionStop
 
+    if LONG_SESSION_S < duration < float("inf") and not long:  # inf: refused as not finite
+        raise HilrigError(
+            f"--duration {duration:g} s is over 24 h ({LONG_SESSION_S:g} s): give --long too"
+            " for a session that long"
+        )
     sink = view_sink(view, view_url, view_save)
     settings = read_rig_file(config) if config is not None else RigFile()
     endpoints = real_endpoints(settings, robot) if rig is RigKind.AUBO else None
@@ -179,9 +195,9 @@ def record(
         contact_area_cm2=contact_area_cm2,
     )
     live = live_view(sink, session) if sink is not None else None
-    stop = threading.Event()
+    stop = SessionStop()  # says which signal ended the session: the file's ended_by
     for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
+        signal.signal(signum, stop.on_signal)
     with SessionWatch() as watch:
         result = record_session(
             session,
@@ -194,10 +210,12 @@ def record(
         )
     print_result(summary_console(), result)
     print_verdict(summary_console(), result)
+    if result.write_failure is not None:
+        raise DiskError(disk_failure_line(result, result.write_failure, duration))
     if result.recorder_error:
         raise HilrigError(f"the recording is incomplete: {result.recorder_error}")
-    if result.ended_by:
-        raise HilrigError(f"the session ended early: {result.ended_by}; see {result.path}")
+    if result.fault:
+        raise HilrigError(f"the session ended early: {result.fault}; see {result.path}")
 
 
 def key_values(items: list[str], option: str = "--scenario-set") -> dict[str, object]:

@@ -73,15 +73,17 @@ def info_command(
 
 
 def _print_loop(console: Console, info: FileInfo) -> None:
-    """The loop's end figures (the ``outcome`` record), else its last counters in the file."""
+    """The loop's end figures and how it ended (the ``outcome`` record), else its last counters
+    in the file."""
     outcome = info.outcome
     if outcome is not None:
-        ended = f"; ended early: {outcome.ended_by}" if outcome.ended_by else ""
+        early = " early" if outcome.ended_early else ""
+        console.print(f"ended{early}: {outcome.ended}", markup=False)
         console.print(
             f"loop: {outcome.ticks:,} ticks, {outcome.hold_ticks:,} hold ticks,"
             f" {outcome.fallback_ticks:,} fallback ticks, {outcome.missed_deadlines:,} missed"
             f" deadlines ({outcome.missed_pct:.2f} %), {outcome.recorder_drops:,} recorder"
-            f" drops{ended}",
+            " drops",
             markup=False,
         )
         console.print(

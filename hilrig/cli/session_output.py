@@ -18,6 +18,7 @@ if TYPE_CHECKING:
 
     from hilrig.recording.samples import EventRecord
     from hilrig.rig import ControlLoop, SessionResult
+    from hilrig.rig.write_failure import WriteFailure
 
 #: Seconds between two status lines.
 STATUS_PERIOD_S = 0.5
@@ -183,8 +184,8 @@ def print_verdict(console: Console, result: SessionResult) -> None:
 
 def print_result(console: Console, result: SessionResult) -> None:
     """The session's summary, each line within 80 columns (but the file's name): file, ticks
-    and timing, messages and drops, why it ended early, the emulated rig's own lateness and
-    skipped slots, and the live view's batches."""
+    and timing, messages and drops, how it ended, the emulated rig's own lateness and skipped
+    slots, and the live view's batches."""
     from hilrig.emulator.slots import MAX_BEHIND
 
     summary = result.summary
@@ -206,8 +207,7 @@ def print_result(console: Console, result: SessionResult) -> None:
         f"  {written} messages written, {result.drops} dropped; {len(result.events)} events",
     ]
     lines += _robot_link_lines(result.robot_link)
-    if result.ended_by:
-        lines.append(f"  ended early: {result.ended_by}; the robot was held")
+    lines.append(ended_line(result))
     if result.recorder_error:
         lines.append(f"  the file is incomplete: {result.recorder_error}")
     rig = result.rig_counters
@@ -227,6 +227,29 @@ def print_result(console: Console, result: SessionResult) -> None:
         lines.append(line + (f"; {view.problem}" if view.problem else ""))
     for line in lines:
         console.print(line, markup=False, highlight=False)
+
+
+def ended_line(result: SessionResult) -> str:
+    """``  ended: duration reached (20.0 s)``, or ``  ended early: <why> at 3.2 s; the robot
+    was held`` (an interrupt, a fault, a disk that refused a write)."""
+    from hilrig.recording.outcome import DURATION_REACHED, ran_its_course
+
+    ran_s = result.summary.ran_s
+    if ran_its_course(result.ended_by):
+        return f"  ended: {DURATION_REACHED} ({ran_s:.1f} s)"
+    return f"  ended early: {result.ended_by} at {ran_s:.1f} s; the robot was held"
+
+
+def disk_failure_line(result: SessionResult, failure: WriteFailure, duration_s: float) -> str:
+    """``hilrig record``'s one line for a write its disk refused: what failed, when, how much of
+    the session the file keeps (its whole chunks) and what to do."""
+    kept_s = max(0.0, (failure.kept_until_ns - result.summary.start_ns) / 1e9)
+    path = result.path
+    return (
+        f"{failure.problem}: the recording stopped at {result.summary.ran_s:.1f} s of"
+        f" {duration_s:g} s; {kept_s:.1f} s kept in {path}, cut at its last whole chunk"
+        f" (`hilrig recover {path} -o OUT` makes it whole); {failure.remedy}"
+    )
 
 
 def _robot_link_lines(link: dict[str, object]) -> list[str]:

@@ -80,11 +80,11 @@ def simulate(
     model with its own settings, meeting each controller --repeats times in an
     order fixed by --seed (printed first), each session in real time."""
     import signal
-    import threading
 
     from hilrig.cli.errors import print_waiting
     from hilrig.cli.record import key_values
     from hilrig.cli.session_output import summary_console
+    from hilrig.rig.stop import SessionStop
     from hilrig.study.simulate import (
         StudyDesign,
         parse_controllers,
@@ -107,8 +107,8 @@ def simulate(
     plan = plan_study(design)
     console = summary_console()
     console.print(plan_table(plan))
-    stop = threading.Event()
-    before = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    stop = SessionStop()  # says which signal ended the session: its file's ended_by
+    before = {s: signal.signal(s, stop.on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         with SessionBar(console, len(plan.sessions)) as bar:
             run = simulate_study(
@@ -166,7 +166,7 @@ class SessionBar:
 
         console, result = self.progress.console, step.result
         console.print(session_line(step, self.total), markup=False)
-        if result is not None and (result.ended_by or result.recorder_error):
+        if result is not None and (result.fault or result.recorder_error):
             print_result(console, result)
         self.progress.advance(self.task)
 
@@ -184,7 +184,7 @@ def session_line(step: SessionStep, total: int) -> str:
         f"{head}: {summary.ticks} ticks, {result.drops} dropped, {summary.hold_ticks} hold "
         f"ticks, {len(result.events)} events"
     )
-    problem = "; ".join(filter(None, (result.ended_by, result.recorder_error)))
+    problem = "; ".join(filter(None, (result.fault, result.recorder_error)))
     return f"{line}; ended early: {problem}" if problem else line
 
 

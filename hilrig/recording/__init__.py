@@ -26,7 +26,8 @@ from hilrig.recording.samples import (
 )
 from hilrig.recording.schema import TOPICS, ChannelSpec, MessageType, default_channels
 from hilrig.recording.session import SessionInfo, validate_subject_id
-from hilrig.recording.writer import SessionWriter, SplitPolicy, part_path
+from hilrig.recording.split import SplitPolicy, part_path
+from hilrig.recording.writer import SessionWriter
 
 __all__ = [
     "TOPICS",

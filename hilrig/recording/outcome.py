@@ -3,8 +3,9 @@
 The recorder writes it last, when the session ends cleanly (``hilrig record`` hands it over with
 the stop): ticks, hold ticks (the robot held its pose: stale input, a command fault or a
 protective stop), fallback ticks (no sensor frame: ticked on the deadline), missed deadlines,
-frames merged with a newer one, rows the recorder's rings refused, why the session ended early
-("" when it ran its course) and the loop's timing (lateness, compute per tick and
+frames merged with a newer one, rows the recorder's rings refused, how the session ended
+(``ended_by``: :data:`DURATION_REACHED`, a stop by the operator, a fault; "" in files of older
+hilrig, read as :data:`DURATION_REACHED`) and the loop's timing (lateness, compute per tick and
 sensor-to-command, p50 and p99 in us; ``nan`` where nothing was measured). A file without it
 did not end cleanly (the recorder or the loop died) or was written by an older hilrig;
 ``hilrig info`` says so. Values are text, as MCAP metadata are: integers in decimal, times
@@ -19,6 +20,22 @@ from dataclasses import dataclass, fields
 from hilrig.errors import RecordingError
 
 OUTCOME_METADATA = "outcome"
+#: ``ended_by`` of a session that ran its course.
+DURATION_REACHED = "duration reached"
+#: ``ended_by`` of a session stopped from outside: SIGINT (Ctrl-C), SIGTERM, or by its caller.
+INTERRUPTED = "interrupted by the operator (SIGINT)"
+TERMINATED = "terminated (SIGTERM)"
+STOPPED = "stopped by its caller"
+
+
+def ran_its_course(ended_by: str) -> bool:
+    """Whether ``ended_by`` says the session ran its whole duration ("": an older hilrig's)."""
+    return ended_by in ("", DURATION_REACHED)
+
+
+def stopped_from_outside(ended_by: str) -> bool:
+    """Whether ``ended_by`` says the session was stopped before its time, not by a fault."""
+    return ended_by in (INTERRUPTED, TERMINATED, STOPPED)
 
 
 @dataclass(frozen=True)
@@ -70,6 +87,16 @@ class SessionOutcome:
                 )
             parsed[f.name] = number
         return cls(**parsed)  # type: ignore[arg-type]
+
+    @property
+    def ended(self) -> str:
+        """How the session ended: ``ended_by``, an older hilrig's "" as :data:`DURATION_REACHED`."""
+        return self.ended_by or DURATION_REACHED
+
+    @property
+    def ended_early(self) -> bool:
+        """Whether it ended before its time (stopped from outside, or a fault)."""
+        return not ran_its_course(self.ended_by)
 
     @property
     def missed_pct(self) -> float:

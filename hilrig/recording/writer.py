@@ -5,8 +5,9 @@ arrival order, as rosbag2 writes them. A chunk is compressed, written and flushe
 operating system as soon as it spans ``chunk_span_s`` of log time, so a killed process loses at
 most that much (0.25 s by default, 0.5 s at most: docs/recording-format.md) and ``hilrig recover``
 restores the rest. Schemas, channels, metadata and attachments are written before any chunk, so
-a file cut anywhere is recoverable. Long sessions can be split into numbered files by duration or
-size.
+a file cut anywhere is recoverable; after a failed write (a full disk) :meth:`~SessionWriter.seal`
+cuts it back to its last whole chunk. Long sessions can be split into numbered files
+(:mod:`.split`).
 
 A write costs about 2 us; closing a chunk compresses its 0.25 s of data (about 1 ms at 1 kHz
 on every topic), so call the writer from a logging thread rather than from the control tick.
@@ -15,15 +16,15 @@ The writer is not thread-safe.
 
 from __future__ import annotations
 
+import io
 import os
 import sys
 import zlib
 from array import array
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import BinaryIO
+from typing import BinaryIO, cast
 
 import zstandard
 
@@ -47,25 +48,11 @@ from hilrig.recording.session import (
     SessionInfo,
     calibration_metadata,
 )
+from hilrig.recording.split import SplitPolicy, part_path
 
 LIBRARY = f"hilrig/{__version__}"
 ROBOT_DESCRIPTION = ChannelSpec("/robot_description", MessageType.STRING, latched=True)
 _U32 = 0xFFFFFFFF
-
-
-@dataclass(frozen=True)
-class SplitPolicy:
-    """Start a new numbered file once the current one spans ``max_duration_s`` of log time or
-    holds ``max_bytes``; either may be None. Files are ``<stem>_000.mcap``, ``<stem>_001.mcap``..
-    """
-
-    max_duration_s: float | None = None
-    max_bytes: int | None = None
-
-
-def part_path(path: Path, part: int) -> Path:
-    """The file of split part number ``part`` of a session written to ``path``."""
-    return path.with_name(f"{path.stem}_{part:03d}{path.suffix}")
 
 
 class _Channel:
@@ -143,6 +130,8 @@ class SessionWriter:
         self._buf = bytearray()
         self._chunk_start = self._chunk_end = 0
         self._part_start, self._part_end = 2**64 - 1, 0
+        self._whole_pos = 0  # the file's bytes handed to the OS whole (ending in a record)
+        self._whole_end_ns = 0  # the last log time of the whole chunks handed over (0: none)
         self._chunk_indexes: list[rec.ChunkIndex] = []
         self._metadata_indexes: list[bytes] = []
         self._attachment_indexes: list[bytes] = []
@@ -233,6 +222,23 @@ class SessionWriter:
                 self._write_metadata(rec.sealed(rec.Metadata(OUTCOME_METADATA, dict(outcome))))
             self._finish_part()
 
+    def seal(self) -> None:
+        """After a failed write (a full disk): cut the file back to its last whole chunk and close
+        it, writing nothing more (no summary: ``hilrig recover`` makes it whole). Idempotent."""
+        file, self._file, self._buf = self._file, None, bytearray()
+        if file is None:
+            return
+        try:
+            os.ftruncate(file.fileno(), self._whole_pos)  # frees space: needs none
+        finally:
+            cast(io.BufferedWriter, file).raw.close()  # closed under the buffer: no flush
+
+    @property
+    def kept_until_ns(self) -> int:
+        """The last log time, on the session's clock, of the chunks handed to the OS whole (0
+        if none was): what :meth:`seal` keeps."""
+        return self._whole_end_ns - self._offset_ns if self._whole_end_ns else 0
+
     def __enter__(self) -> SessionWriter:
         return self
 
@@ -290,6 +296,7 @@ class SessionWriter:
         self._part_end = max(self._part_end, self._chunk_end)
         self._buf = bytearray()
         self._file.flush()
+        self._whole_pos, self._whole_end_ns = self._pos, max(self._whole_end_ns, self._chunk_end)
 
     def _describe_robot(self, t_ns: int) -> None:
         """Publish the URDF on /robot_description (at monotonic time ``t_ns``), if there is one."""
@@ -349,6 +356,7 @@ class SessionWriter:
             )
         assert self._file is not None
         self._file.flush()
+        self._whole_pos = self._pos
 
     def _finish_part(self) -> None:
         assert self._file is not None

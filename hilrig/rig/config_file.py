@@ -137,7 +137,13 @@ def session_path(out: Path | None, stem: str) -> Path:
 
 def check_recording_path(path: Path) -> None:
     """Raise OutputError (one line) unless a new recording can be made at ``path`` (its missing
-    folders made): nothing there, and the nearest existing folder above it writable."""
+    folders made): a name ending in ``.mcap``, nothing there, and the nearest existing folder
+    above it writable."""
+    if path.suffix != ".mcap":
+        raise OutputError(
+            f"{path}: a recording is an MCAP file, its name must end in .mcap"
+            f" (e.g. {path.with_suffix('.mcap').name})"
+        )
     try:
         check_new_file(path, create_folder=True)
     except NotADirectoryError:  # a file where one of its folders should be

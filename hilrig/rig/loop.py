@@ -51,11 +51,13 @@ from hilrig.control import (
 from hilrig.drivers.ft.gravity import GravityCompensator
 from hilrig.drivers.joint_targets.wire import Mode
 from hilrig.errors import HilrigError
+from hilrig.recording.outcome import DURATION_REACHED
 from hilrig.recording.samples import ContactState, EventRecord
 from hilrig.rig.device_io import DeviceIO
 from hilrig.rig.events import EventDetector
 from hilrig.rig.grid import NominalGrid
 from hilrig.rig.loop_figures import LoopStatus, LoopSummary
+from hilrig.rig.stop import stop_reason
 from hilrig.rig.virtual import VirtualInput
 from hilrig.robot import RobotModel
 from hilrig.tick.kernel import CONTACT_CHANGED, FRESH, HELD, STOP_NOW, CompiledTick, TickInputs
@@ -201,7 +203,7 @@ class ControlLoop:
         self._task_ticks, self._task_dt_s = 0, 1.0 / config.rate_hz
         self._last_start_ns = 0
         self._last_nominal_ns = 0
-        self.ended_by = ""  # why the watchdog ended the session ("" if it did not)
+        self.ended_by = ""  # how run() ended (outcome.py): duration, stop's reason, watchdog
 
     def _event(self, record: EventRecord) -> None:
         if self._feed is not None:
@@ -213,8 +215,8 @@ class ControlLoop:
 
     def run(self, duration_s: float | None, stop: threading.Event) -> LoopSummary:
         """Tick until ``duration_s`` has passed, ``stop`` is set or the watchdog (asked when
-        its fd is readable) names a reason to end; returns the summary. The robot is left
-        holding."""
+        its fd is readable) names a reason to end, said by :attr:`ended_by`; returns the
+        summary. The robot is left holding."""
         feed = self._feed
         if feed is not None:  # bound to the ring's rows while running, released after
             self._put_row = self._kernel.row_writer(feed.tick.rows, feed.tick.header, feed.headers)
@@ -240,6 +242,7 @@ class ControlLoop:
             # the loop's start anchors the grid until a frame re-anchors it: a sensor silent
             # from the start still gets fallback ticks (holding) and the session still ends
             grid = NominalGrid(period, now)
+            summary.start_ns = now
             while not stop.is_set():
                 last = grid.nominal_ns
                 wake_ns = last + period + NUDGE_NS  # then read even if nothing is readable
@@ -254,6 +257,7 @@ class ControlLoop:
                 nominal = grid.place(now, frames)
                 lateness = now - nominal
                 if end_ns is not None and nominal >= end_ns:
+                    self.ended_by = DURATION_REACHED
                     break
                 if not frames:
                     summary.fallback_ticks += 1
@@ -272,6 +276,8 @@ class ControlLoop:
                     summary.missed_deadlines += 1
                 summary.missed_deadlines += frames - 1 if frames else 0
             summary.grid_shifts = grid.fast_shifts
+            summary.ran_s = (self._last_nominal_ns - self._t0_ns) / 1e9 if summary.ticks else 0.0
+            self.ended_by = self.ended_by or stop_reason(stop)
 
     def tick(self, start_ns: int, nominal_ns: int) -> None:
         """One tick on the newest samples, started at ``start_ns`` for ``nominal_ns``."""

@@ -50,6 +50,8 @@ class LoopSummary:
     merged_frames: int = 0  # frames read together with a newer one: no tick of their own
     hold_ticks: int = 0
     grid_shifts: int = 0  # times the nominal grid was found early and moved at once (.grid)
+    start_ns: int = 0  # the loop's start (monotonic): the session's time 0
+    ran_s: float = 0.0  # from the start to the last tick's nominal time
     lateness: LatencyHistogram = field(default_factory=LatencyHistogram)
     io: LatencyHistogram = field(default_factory=LatencyHistogram)
     compute: LatencyHistogram = field(default_factory=LatencyHistogram)

@@ -1,7 +1,11 @@
 """The recorder process: every ``poll_s`` it copies out what the rings hold, turns the rows
 into samples (:mod:`.row_messages`) and writes them with :class:`~hilrig.recording.SessionWriter`;
 with a live view it also forwards a decimated copy (:class:`~.view_feed.ViewForwarder`). Between
-polls it waits on its pipe to the parent, which says when to stop and with what outcome."""
+polls it waits on its pipe to the parent, which says when to stop and with what outcome.
+
+A write the disk refuses (full, over quota, failing: :mod:`.write_failure`) ends it at once: the
+file is cut back to its last whole chunk (``SessionWriter.seal``), the rings are released and
+it reports ``("failed", WriteFailure)`` instead of ``done``, then exits."""
 
 from __future__ import annotations
 
@@ -36,6 +40,7 @@ from hilrig.rig.row_messages import (
     tick_samples,
 )
 from hilrig.rig.view_feed import VIEW_BATCH_S, VIEW_HANDOFF_S, ViewBatch, ViewForwarder
+from hilrig.rig.write_failure import WriteFailure, write_failure
 from hilrig.timing import freeze_heap
 
 #: Ahead of a busy machine's other work (where permitted: root or CAP_SYS_NICE), behind the loop's
@@ -46,6 +51,7 @@ RECORDER_NICENESS = -10
 IDLE_FLUSH_S = 0.25  # hand a quiet writer's open chunk to the OS after this long without data
 BEGIN = "begin"  # RecorderProcess.begin() sends (BEGIN, session, calibration)
 STOP = "stop"  # RecorderProcess.stop() sends (STOP, outcome or None)
+FAILED = "failed"  # the recorder reports (FAILED, WriteFailure): a disk refused a write
 
 
 @dataclass(frozen=True)
@@ -91,9 +97,9 @@ def record(conn: Connection, job: RecorderJob) -> None:
             urdf=job.urdf,
             split=job.split,
         )
-    except HilrigError as err:
+    except (HilrigError, OSError) as err:
         release_rings(rings)
-        report(conn, "error", str(err))
+        report(conn, "error", _opening_error(err, job.path))
         return
     recorder = _Recorder(job, conn, writer, rings)
     signal.signal(signal.SIGTERM, recorder.on_sigterm)
@@ -106,12 +112,26 @@ def record(conn: Connection, job: RecorderJob) -> None:
         return
     finally:
         try:
-            outcome = recorder.outcome
-            writer.close(None if outcome is None else outcome.to_metadata())
+            recorder.close()
             release_rings(rings)
         finally:  # the file is closed: now the live view's last batch may take its time
             views = None if recorder.view is None else recorder.view.finish(VIEW_HANDOFF_S)
-    report(conn, "done", (messages, views))
+    if recorder.failure is not None:
+        report(conn, FAILED, recorder.failure)
+    else:
+        report(conn, "done", (messages, views))
+
+
+def _opening_error(err: HilrigError | OSError, path: Path) -> str:
+    """The recorder's error when its file cannot be opened: a disk's refusal (the file, begun
+    by this writer, removed), else ``err``'s own (an OSError of another kind is raised)."""
+    if isinstance(err, HilrigError):
+        return str(err)
+    failure = write_failure(err, path, 0)
+    if failure is None:
+        raise err
+    path.unlink(missing_ok=True)  # "xb": the writer made it, and it holds no sample
+    return f"{failure.problem}: the recording could not start, nothing kept; {failure.remedy}"
 
 
 def _begin(conn: Connection) -> tuple[SessionInfo, Mapping[str, object] | None] | None:
@@ -136,6 +156,8 @@ class _Recorder:
         self.ft, self.joint, self.tick, self.events, self.servo = rings
         self.terminated = False
         self.outcome: SessionOutcome | None = None  # the session's end figures, with the stop
+        self.failure: WriteFailure | None = None  # the write a disk refused: the file is sealed
+        self.messages = 0
         self.view = None
         if job.view is not None:
             self.view = ViewForwarder(job.view, rate_hz=job.view_rate_hz, batch_s=VIEW_BATCH_S)
@@ -145,9 +167,33 @@ class _Recorder:
         self.terminated = True
 
     def run(self) -> int:
-        """Write what arrives every ``poll_s`` until the parent's stop, SIGTERM or the
-        parent's death; returns the number of messages written."""
-        messages = 0
+        """Write what arrives every ``poll_s`` until the parent's stop, SIGTERM, the parent's
+        death or a write the disk refuses (:attr:`failure`); returns the number of messages
+        written."""
+        try:
+            self._run()
+        except OSError as err:  # its frames, with their views of the rings, are gone here
+            self._failed(err)
+        return self.messages
+
+    def close(self) -> None:
+        """Finish the file with the parent's outcome (if it came), or seal it if the disk
+        refuses that."""
+        outcome = self.outcome
+        try:
+            self.writer.close(None if outcome is None else outcome.to_metadata())
+        except OSError as err:
+            self._failed(err)
+
+    def _failed(self, err: OSError) -> None:
+        """Seal the file after ``err``, a disk's refusal (:attr:`failure`); re-raise another."""
+        failure = write_failure(err, self.job.path, self.writer.kept_until_ns)
+        if failure is None:
+            raise err
+        self.writer.seal()
+        self.failure = failure
+
+    def _run(self) -> None:
         last_data = time.monotonic()
         dirty = False  # the writer holds data since the last flush
         while True:
@@ -168,7 +214,7 @@ class _Recorder:
                     written += 1
                 if self.view is not None and stream:
                     self.view.rows_read(stream, rows)
-            messages += written
+            self.messages += written
             if self.view is not None:
                 self.view.send_due(time.monotonic_ns())
             now = time.monotonic()
@@ -178,7 +224,7 @@ class _Recorder:
                 self.writer.flush()  # a paused loop's last rows reach the disk too
                 dirty = False
             if stopping or finishing:
-                return messages
+                return
 
     def write_events(self) -> int:
         """Write (and forward to the live view) the events in their ring; returns how many."""

@@ -10,7 +10,9 @@ rings: the rows committed meanwhile wait there (up to ``RecorderFeed(rows=...)``
 The recorder ignores SIGINT (the loop handles Ctrl-C, then calls :meth:`RecorderProcess.stop`),
 and finishes its file cleanly on :meth:`~RecorderProcess.stop`, on SIGTERM, or when the loop
 process dies. Only SIGKILL leaves a truncated file, missing at most the writer's open chunk
-(0.25 s): ``hilrig recover`` makes it whole.
+(0.25 s): ``hilrig recover`` makes it whole. A write its disk refuses (full, failing) leaves the
+same file, cut at its last whole chunk: the recorder then reports it and exits, and
+:meth:`RecorderProcess.failure` says so (the session's watchdog asks when it exits).
 
 Shutdown order: stop the loop, then :meth:`RecorderProcess.stop` (every row and event committed
 before it is recorded), then :meth:`RecorderFeed.close`.
@@ -22,15 +24,16 @@ import os
 from collections.abc import Mapping, Sequence
 from multiprocessing.queues import Queue
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from hilrig.errors import RecordingError
 from hilrig.recording import Attachment, SessionInfo, SessionOutcome, SplitPolicy
 from hilrig.rig.child import ChildProcess
-from hilrig.rig.recorder_child import BEGIN, STOP, RecorderJob, record
+from hilrig.rig.recorder_child import BEGIN, FAILED, STOP, RecorderJob, record
 from hilrig.rig.recorder_feed import RecorderFeed
 from hilrig.rig.records import AXIS_NAMES
 from hilrig.rig.view_feed import VIEW_RATE_HZ, ViewBatch, ViewCounts
+from hilrig.rig.write_failure import WriteFailure
 
 POLL_S = 0.005
 
@@ -85,6 +88,8 @@ class RecorderProcess:
         self._child = ChildProcess("hilrig-recorder", f"recorder of {self.path}", RecordingError)
         self._begun = self._ready = False
         self._summary: RecorderSummary | None = None
+        self._report: tuple[str, Any] | None = None  # read by failure(), not yet handled
+        self._failure: WriteFailure | None = None
         self.view_counts: ViewCounts | None = None  # set by stop() when there is a view
 
     @property
@@ -133,6 +138,15 @@ class RecorderProcess:
         """The recorder process runs: one ``waitpid(WNOHANG)`` system call, no I/O."""
         return self._child.alive()
 
+    def failure(self) -> WriteFailure | None:
+        """The write a disk refused, if the recorder (begun and ready) reported one: its file
+        is then sealed and it exits. No waiting: a report not yet sent is not seen."""
+        if self._failure is None and self._report is None and self._ready and self._child.poll():
+            self._report = self._child.next_report()
+            if self._report[0] == FAILED:
+                self._failure = self._report[1]
+        return self._failure
+
     @property
     def sentinel(self) -> int:
         """A file descriptor that becomes readable when the recorder process ends."""
@@ -146,8 +160,9 @@ class RecorderProcess:
         (a recorder that never began exits without a file: 0 messages). Calling it again returns
         the same summary.
 
-        Raises RecordingError if the recorder was not spawned, failed, died, or did not finish
-        within ``timeout_s`` (it is then killed; ``hilrig recover`` repairs its file).
+        Raises RecordingError if the recorder was not spawned, failed (a disk's refusal:
+        :meth:`failure`), died, or did not finish within ``timeout_s`` (it is then killed;
+        ``hilrig recover`` repairs its file).
         """
         if self._summary is not None:
             return self._summary
@@ -161,9 +176,23 @@ class RecorderProcess:
             )
         if self._begun and not self._ready:
             self.ready()  # raises the recorder's error if it never opened its file
-        messages, self.view_counts = self._child.receive("done")
+        messages, self.view_counts = self._done()
         self._summary = RecorderSummary(messages, self._feed.drops)
         return self._summary
+
+    def _done(self) -> Any:
+        """The value of the recorder's ``done`` report; RecordingError for any other end."""
+        kind, value = self._report or self._child.next_report()
+        if kind == FAILED:
+            self._failure = value
+            raise RecordingError(f"recorder of {self.path}: {value.problem}")
+        if kind == "ended":
+            raise RecordingError(
+                f"recorder of {self.path}: exited with code {value} before reporting done"
+            )
+        if kind != "done":
+            raise RecordingError(f"recorder of {self.path}: {value}")  # its error
+        return value
 
     def kill(self) -> None:
         """SIGKILL the recorder and reap it (its file is left as it was: truncated)."""

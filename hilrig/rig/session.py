@@ -13,7 +13,9 @@ Start-up is ordered so that nothing is lost and nothing costs the first ticks:
    samples read meanwhile, which are recorded too;
 5. the recorder gets the session metadata and calibration and opens the file; the rows waiting
    in the rings are written first;
-6. the loop ticks until the duration has passed or ``stop`` is set (Ctrl-C, SIGTERM).
+6. the loop ticks until the duration has passed, ``stop`` is set (Ctrl-C, SIGTERM: a
+   :class:`~.stop.SessionStop` says which) or the watchdog ends it (the robot's fault, the
+   recorder's death or a write its disk refused); ``ended_by`` says which.
 
 Whatever happens, the robot is left holding and the recording is closed cleanly: the ExitStack
 unwinds in reverse order.
@@ -39,8 +41,10 @@ from hilrig.emulator.rig import RigConfig, RigEndpoints
 from hilrig.errors import LinkError, OutputError, RecordingError
 from hilrig.machine.settings import session_warnings
 from hilrig.recording import SessionInfo, SessionOutcome
+from hilrig.recording.outcome import ran_its_course, stopped_from_outside
 from hilrig.recording.samples import EventRecord
 from hilrig.rig.device_io import DeviceIO
+from hilrig.rig.disk_space import check_free_space
 from hilrig.rig.kinds import RigKind
 from hilrig.rig.live_port import LiveReportLike, LiveViewPort
 from hilrig.rig.loop import ControlLoop, Watchdog
@@ -53,6 +57,7 @@ from hilrig.rig.rig_process import RigCounters, RigProcess
 from hilrig.rig.robot_links import RobotLink, open_robot_link
 from hilrig.rig.session_config import SessionConfig
 from hilrig.rig.warm_up import warm_up
+from hilrig.rig.write_failure import WriteFailure
 from hilrig.robot import RobotModel
 from hilrig.tick.links import ROBOT_LINK, SENSOR_LINK
 from hilrig.timing import freeze_heap
@@ -68,8 +73,8 @@ MAX_DRAIN_S = 2.0
 
 @dataclass
 class SessionResult:
-    """What a session produced: the file, the loop's summary, the recorder's counts and how the
-    live view went (None without one)."""
+    """What a session produced: the file, the loop's summary, the recorder's counts, how the
+    live view went (None without one) and how the session ended."""
 
     path: Path
     summary: LoopSummary
@@ -79,8 +84,16 @@ class SessionResult:
     recorder_error: str = ""  # why the file may be truncated ("" when it closed cleanly)
     view: LiveReportLike | None = None
     rig_counters: RigCounters | None = None  # what the emulated rig sent (None: a real rig)
-    ended_by: str = ""  # why the session ended before its time, e.g. the recorder died
+    ended_by: str = ""  # how it ended (outcome.py): duration reached, a stop, a fault
     robot_link: dict[str, object] = field(default_factory=dict)  # which, and what it did
+    write_failure: WriteFailure | None = None  # the write a disk refused (ended_by says it)
+
+    @property
+    def fault(self) -> str:
+        """Why a fault ended the session early (the robot, the recorder, the disk): its
+        ``ended_by``; "" when it ran its course or was stopped from outside."""
+        early = not ran_its_course(self.ended_by) and not stopped_from_outside(self.ended_by)
+        return self.ended_by if early else ""
 
 
 def record_session(
@@ -109,7 +122,9 @@ def record_session(
     emulated rig and recorder processes (fault injection in tests), ``on_wait`` a line saying
     that another session holds the machine (this one then waits for it, or for ``stop``), and
     ``on_warning`` a line for each setting of the machine that would cost the session most
-    (:func:`hilrig.machine.settings.session_warnings`; the session runs all the same). The
+    (:func:`hilrig.machine.settings.session_warnings`; the session runs all the same) and for a
+    disk with little room for it (:func:`.disk_space.check_free_space`, which refuses one that
+    has too little). The
     machine's settings are read once the machine is this session's, and attached to the file.
     """
     config.check()
@@ -125,6 +140,9 @@ def record_session(
     model = RobotModel()
     with ExitStack() as stack:
         stack.enter_context(one_session_at_a_time(stop, on_wait))
+        space = check_free_space(config.out, config.duration_s)  # too little: refused here
+        if space and on_warning is not None:
+            on_warning(space)
         machine = config.machine_settings()
         if on_warning is not None:
             for line in session_warnings(machine):
@@ -243,6 +261,7 @@ def record_session(
         counters,
         loop.ended_by,
         {**link.describe, **link.figures()},
+        recorder.failure(),
     )
 
 
@@ -290,10 +309,14 @@ def _connect(
 
 
 def _watchdog(recorder: RecorderProcess, link: RobotLink) -> Watchdog:
-    """What ends the session early: the recorder's death, or the robot link's fault (a
-    protective or emergency stop, servo mode left, the link lost)."""
+    """What ends the session early: a write the recorder's disk refused, the recorder's death,
+    or the robot link's fault (a protective or emergency stop, servo mode left, the link
+    lost)."""
 
     def reason() -> str:
+        failure = recorder.failure()  # it exits once it said so: its sentinel wakes the loop
+        if failure is not None:
+            return failure.problem
         if not recorder.alive():
             return "the recorder process died"
         fault = link.fault()

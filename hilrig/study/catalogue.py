@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from hilrig.errors import HilrigError, StudyError
+from hilrig.recording.outcome import ran_its_course
 from hilrig.recording.session import utc_iso
 from hilrig.recording.session_ids import written_as
 from hilrig.study.glance import glance
@@ -41,7 +42,7 @@ FLAGS = {
     "unreadable": "not a readable hilrig recording (see problem)",
     "incomplete": "the file is truncated or damaged: part of the session is missing",
     "unfinished": "no outcome record: the session did not end cleanly (or was recovered)",
-    "ended-early": "the loop ended the session before its time (see ended_by)",
+    "ended-early": "the session ended before its time: stopped or a fault (see ended_by)",
     "dropped": "the recorder dropped rows",
     "holds": "the robot held its pose on some ticks (stale data, a fault or a stop)",
     "missed": f"more than {MISSED_FLAG_PCT} % of the loop's deadlines were missed",
@@ -234,7 +235,7 @@ def _session_row(key: str, parts: pd.DataFrame, twin: bool) -> dict[str, object]
         flags += ["duplicate-id"] if twin else []
         flags += [] if bool(parts["complete"].all()) else ["incomplete"]
         flags += [] if bool(last["ended_cleanly"]) else ["unfinished"]
-        flags += ["ended-early"] if last["ended_by"] else []
+        flags += [] if ran_its_course(str(last["ended_by"])) else ["ended-early"]
         flags += ["dropped"] if _total(parts, "dropped") else []
         flags += ["holds"] if _total(parts, "hold_ticks") else []
     ticks = _total(parts, "ticks")

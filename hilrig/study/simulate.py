@@ -298,7 +298,7 @@ def existing(plan: StudyPlan, index: int, out: Path) -> SessionStep | None:
     if differs:
         return skip(f"not this plan's session ({'; '.join(differs)})")
     outcome = info.outcome
-    if not info.complete or outcome is None or outcome.ended_by:
+    if not info.complete or outcome is None or outcome.ended_early:
         return skip(f"incomplete ({(outcome and outcome.ended_by) or 'not closed cleanly'})")
     spans = [(t.end_ns or 0) - (t.start_ns or 0) for t in info.topics if t.topic == LOOP_TOPIC]
     span_s = max(spans, default=0) / 1e9
@@ -394,7 +394,7 @@ def simulate_study(
         result = record_session(session_config(plan, planned, out), stop=stop, on_wait=on_wait)
         steps.append(SessionStep(index, planned, "recorded", result))
         report(steps[-1])
-        problem = "; ".join(filter(None, (result.ended_by, result.recorder_error)))
+        problem = "; ".join(filter(None, (result.fault, result.recorder_error)))
         if problem:
             raise HilrigError(f"session {planned.file.stem} ended early: {problem}")
     return StudyRun(tuple(sorted(steps, key=lambda s: s.index)), design_file)

@@ -68,7 +68,7 @@ class Live:
 
 
 def result(path: Path, view: LiveReportLike | None = None) -> SessionResult:
-    summary = LoopSummary(ticks=1_234_567, missed_deadlines=81_234, hold_ticks=136)
+    summary = LoopSummary(ticks=1_234_567, missed_deadlines=81_234, hold_ticks=136, ran_s=1234.5)
     for lateness_us in (135, 1060, 18_711):
         summary.lateness.add(lateness_us * 1000)
         summary.sensor_to_command.add(lateness_us * 1000)
@@ -103,7 +103,7 @@ def test_the_summary_fits_80_columns_keeps_every_number_and_reads_no_markup() ->
         "  sensor to command sent p50 1060 us, p99 18711 us",
         "  sensor to command acknowledged p50 2060 us, p99 19711 us",
         "  8765432109 messages written, 12345 dropped; 0 events",
-        "  ended early: the recorder process died; the robot was held",
+        "  ended early: the recorder process died at 1234.5 s; the robot was held",
     ]
     assert lines[8].startswith("  the file is incomplete: recorder of a[red]b.mcap: exited with")
     assert lines[9:] == [

@@ -227,7 +227,7 @@ def test_the_file_ends_with_the_loop_s_figures(collision: SessionResult) -> None
         summary.fallback_ticks,
     )
     assert outcome.missed_deadlines == summary.missed_deadlines
-    assert (outcome.recorder_drops, outcome.ended_by) == (collision.drops, "")
+    assert (outcome.recorder_drops, outcome.ended_by) == (collision.drops, "duration reached")
 
 
 def test_no_folder_of_the_output_is_stored_in_the_file(collision: SessionResult) -> None:

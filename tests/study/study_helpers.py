@@ -31,8 +31,10 @@ from analysis_helpers import CARTESIAN, JOINTS, paper_inputs, simulate_all
 START_UTC_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00:00Z
 
 
-def outcome(ticks: int, *, drops: int = 0, holds: int = 0, missed: int = 0) -> SessionOutcome:
-    """A session's end figures."""
+def outcome(
+    ticks: int, *, drops: int = 0, holds: int = 0, missed: int = 0, ended_by: str = ""
+) -> SessionOutcome:
+    """A session's end figures ("" ended_by: as an older hilrig wrote it)."""
     return SessionOutcome(
         ticks=ticks,
         hold_ticks=holds,
@@ -40,7 +42,7 @@ def outcome(ticks: int, *, drops: int = 0, holds: int = 0, missed: int = 0) -> S
         missed_deadlines=missed,
         merged_frames=0,
         recorder_drops=drops,
-        ended_by="",
+        ended_by=ended_by,
         lateness_p50_us=10.0,
         lateness_p99_us=50.0,
         compute_p50_us=20.0,
@@ -61,6 +63,7 @@ def write_study_session(
     drops: int = 0,
     finished: bool = True,
     settings: dict[str, object] | None = None,
+    ended_by: str = "",
 ) -> Path:
     """One session: the paper's inputs x ``scale`` through ``law`` (see the module doc)."""
     t_s, force, torque = paper_inputs(duration_s, PAPER_DT_S)
@@ -102,7 +105,8 @@ def write_study_session(
         if n and contact[n] == 1 and contact[n - 1] != 1:
             event = EventRecord(t_ns, EventKind.COLLISION_START, "controller", "", "end effector")
             writer.write("/events", event)
-    writer.close(outcome(len(t_s), drops=drops).to_metadata() if finished else None)
+    ended = outcome(len(t_s), drops=drops, ended_by=ended_by)
+    writer.close(ended.to_metadata() if finished else None)
     return path
 
 

@@ -133,6 +133,32 @@ def test_quality_flags_name_what_is_wrong(tmp_path: Path) -> None:
     )
 
 
+def test_ended_early_flags_a_session_stopped_or_faulted_not_one_that_ran_its_course(
+    tmp_path: Path,
+) -> None:
+    ends = {
+        "older": "",  # an older hilrig's: ran its course
+        "reached": "duration reached",
+        "sigint": "interrupted by the operator (SIGINT)",
+        "sigterm": "terminated (SIGTERM)",
+        "disk": "the disk is full (/data)",
+        "robot": "robot: the controller reports protective stop (safety mode 5)",
+    }
+    for n, (name, ended_by) in enumerate(ends.items()):
+        write_study_session(
+            tmp_path / f"{name}.mcap",
+            subject=f"S00{n + 1}",
+            law="fixed",
+            scale=1.0,
+            session_id=name,
+            ended_by=ended_by,
+        )
+    catalogue = sessions(index(tmp_path)[0]).set_index("session")
+    flagged = {name for name in ends if catalogue.loc[name, "flags"] == "ended-early"}
+    assert flagged == {"sigint", "sigterm", "disk", "robot"}
+    assert (catalogue.loc[["older", "reached"], "flags"] == "").all()
+
+
 def test_a_split_session_is_one_row(tmp_path: Path) -> None:
     write_session(tmp_path / "long.mcap", subject_id="S001", session_id="long", split_s=3.0)
     files = index(tmp_path)[0]

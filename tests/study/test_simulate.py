@@ -337,4 +337,4 @@ def test_a_tiny_study_is_recorded_on_the_emulated_rig_and_resumed(
     assert cut.session.repetition == 2 and (out / cut.session.file).is_file()
     again = existing(more, cut.index, out)
     assert again is not None and again.status == "skipped"
-    assert again.note.startswith(f"{out / cut.session.file}: interrupted (")
+    assert again.note.startswith(f"{out / cut.session.file}: incomplete (stopped by its caller)")

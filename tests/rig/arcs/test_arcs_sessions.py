@@ -82,7 +82,7 @@ def test_every_rtde_sample_is_recorded_and_servo_mode_is_left(session: SessionRe
     # the servo stream ran: several servoJoint calls per 100 ticks (200 Hz against 1 kHz)
     assert counters.servo_joints >= session.summary.ticks // 10
     assert counters.servo_mode is False
-    assert session.ended_by == ""
+    assert session.ended_by == "duration reached"
     assert session.drops == 0
 
 
@@ -165,7 +165,7 @@ def test_a_lost_link_ends_the_session_with_the_client_s_reason(tmp_path: Path) -
 
 def test_a_stalled_rtde_stream_holds_the_robot_and_the_session_goes_on(tmp_path: Path) -> None:
     result = run(tmp_path, "stall.mcap", 2.5, during=after_ticks(500, "arcs.stall_rtde", 0.1))
-    assert result.ended_by == ""
+    assert result.ended_by == "duration reached"
     assert result.summary.hold_ticks > 0
     robot = [e.detail for e in result.events if e.source == "robot joint state"]
     assert robot[:2] == [
