@@ -31,6 +31,7 @@ from typing import Any
 from hilrig.emulator.rig import RigEndpoints
 from hilrig.errors import HilrigError, OutputError
 from hilrig.outputs import check_new_file
+from hilrig.recording.session_ids import new_session_id
 from hilrig.rig.arcs.settings import RPC_PORT, RTDE_PORT
 
 #: Where new recordings go unless told.
@@ -127,10 +128,12 @@ def _host_port(value: object) -> tuple[str, int]:
 
 
 def session_path(out: Path | None, stem: str) -> Path:
-    """``out``, or ``recordings/<stem>-<local date-time>.mcap``: a new file (checked, not made:
-    the session makes it and its folder when it starts). Raises OutputError (one line) if a file
-    is there already or its folder cannot be written or made."""
-    path = out or RECORDINGS / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}.mcap"
+    """``out``, or ``recordings/<stem>-<local date-time>-<5 random characters>.mcap`` (two
+    sessions started in one second get two names): a new file (checked, not made: the session
+    makes it and its folder when it starts). Raises OutputError (one line) if a file is there
+    already or its folder cannot be written or made."""
+    unique = new_session_id()[-5:].lower()  # a ULID's last characters are random
+    path = out or RECORDINGS / f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}-{unique}.mcap"
     check_recording_path(path)
     return path
 

@@ -56,6 +56,15 @@ def test_session_path_checks_but_makes_nothing(
         session_path(tmp_path / "taken.mcap", "S001")
 
 
+def test_default_paths_made_in_one_second_differ(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    names = [session_path(None, "S001").name for _ in range(50)]
+    assert len(set(names)) == 50
+    assert all(re.fullmatch(r"S001-\d{8}-\d{6}-[0-9a-z]{5}\.mcap", n) for n in names), names
+
+
 def test_a_trajectory_table_that_does_not_build_is_named_with_the_file(tmp_path: Path) -> None:
     path = tmp_path / "rig.toml"
     path.write_text('[trajectory]\nname = "waypoints"\npoints = [[1.0, 0.0, 0.0]]\n')
