@@ -194,7 +194,11 @@ def print_result(console: Console, result: SessionResult) -> None:
     ack = summary.sensor_to_ack.summary_us()
     compute, send = summary.compute.summary_us(), summary.send.summary_us()
     missed_pct = 100 * summary.missed_deadlines / max(summary.ticks, 1)
-    written = "unknown" if result.messages_written is None else result.messages_written
+    written = (
+        "messages written: not counted (the recorder did not close the file)"
+        if result.messages_written is None
+        else f"{result.messages_written} messages written"
+    )
     lines = [
         f"recorded {result.path}",
         f"  {summary.ticks} ticks, {summary.missed_deadlines} missed deadlines "
@@ -204,7 +208,7 @@ def print_result(console: Console, result: SessionResult) -> None:
         f" send p99 {send['p99']:.0f} us",
         f"  sensor to command sent p50 {s2c['p50']:.0f} us, p99 {s2c['p99']:.0f} us",
         f"  sensor to command acknowledged p50 {ack['p50']:.0f} us, p99 {ack['p99']:.0f} us",
-        f"  {written} messages written, {result.drops} dropped; {len(result.events)} events",
+        f"  {written}, {result.drops} dropped; {len(result.events)} events",
     ]
     lines += _robot_link_lines(result.robot_link)
     lines.append(ended_line(result))
