@@ -7,9 +7,14 @@ the command line) exit 2, anything else is reported as a bug and exits 3, Ctrl-C
 ``hilrig --debug COMMAND`` shows the full traceback.
 """
 
+from __future__ import annotations
+
+import os
+import signal
 import sys
+import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import typer
 from typer._click.exceptions import ClickException, NoArgsIsHelpError, UsageError
@@ -37,6 +42,7 @@ from hilrig.cli.errors import (
     INTERRUPT_EXIT,
     SETTINGS,
     disk_error,
+    interrupted_by,
     print_bug,
     print_error,
     print_interrupted,
@@ -47,6 +53,9 @@ from hilrig.errors import HilrigError, StoppedWaitingError
 
 __all__ = ["app", "main", "run"]
 
+#: Seconds before a Ctrl-C caught where Python cannot raise it is sent again.
+AGAIN_S = 0.01
+
 
 def main() -> None:
     """Entry point of the ``hilrig`` script."""
@@ -56,12 +65,41 @@ def main() -> None:
 def run(args: Sequence[str]) -> int:
     """Run the command line ``args`` (without the program's name); its exit status."""
     SETTINGS.debug = False  # until the app's callback reads --debug
-    shown_by = warnings.showwarning
+    shown_by, unraisable_by = warnings.showwarning, sys.unraisablehook
     warnings.showwarning = show_warning
+    sys.unraisablehook = _unraisable(unraisable_by)
     try:
         return _run(args)
     finally:
-        warnings.showwarning = shown_by
+        warnings.showwarning, sys.unraisablehook = shown_by, unraisable_by
+
+
+def _unraisable(
+    shown_by: Callable[[sys.UnraisableHookArgs], object],
+) -> Callable[[sys.UnraisableHookArgs], None]:
+    """A hook for exceptions Python cannot raise (in ``__del__``, a weakref callback): a Ctrl-C
+    caught there is delivered again rather than lost, so the command still ends on the first
+    one; anything else is shown as Python shows it."""
+
+    def hook(unraisable: sys.UnraisableHookArgs) -> None:
+        if unraisable.exc_type is KeyboardInterrupt:
+            _interrupt_again()
+        else:
+            shown_by(unraisable)
+
+    return hook
+
+
+def _interrupt_again() -> None:
+    """SIGINT to this process once more, sent by another thread a moment later: its handler
+    then runs in the code that follows the hook, not in the hook (where its exception would be
+    lost too). Should it come before the hook returned, it is sent again."""
+    while True:
+        try:
+            threading.Timer(AGAIN_S, os.kill, (os.getpid(), signal.SIGINT)).start()
+        except KeyboardInterrupt:  # it came here: send another
+            continue
+        return
 
 
 def _run(args: Sequence[str]) -> int:
@@ -71,6 +109,9 @@ def _run(args: Sequence[str]) -> int:
         print_interrupted(str(err))
         return INTERRUPT_EXIT
     except HilrigError as err:
+        if interrupted_by(err):
+            print_interrupted()
+            return INTERRUPT_EXIT
         print_error(err)
         return ERROR_EXIT
     except NoArgsIsHelpError as err:  # ``hilrig`` alone shows its help
@@ -89,6 +130,9 @@ def _run(args: Sequence[str]) -> int:
         print_interrupted()
         return INTERRUPT_EXIT
     except Exception as err:
+        if interrupted_by(err):
+            print_interrupted()
+            return INTERRUPT_EXIT
         disk = disk_error(err)
         if disk is not None:
             print_error(disk)

@@ -142,6 +142,19 @@ def show_warning(
     print_warning(str(message))
 
 
+def interrupted_by(err: BaseException) -> bool:
+    """Whether ``err`` is or wraps a Ctrl-C (Python wraps one raised in ``__set_name__`` in a
+    RuntimeError; a caller may have turned that into a HilrigError)."""
+    seen: set[int] = set()
+    cause: BaseException | None = err
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            return True
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return False
+
+
 def one_line_errors(command: Callable[P, R]) -> Callable[P, R]:
     """``command`` with its expected failures printed by :func:`print_error` (exit 2), for
     callers of the typer app that bypass :func:`hilrig.cli.main` (tests)."""
@@ -151,9 +164,13 @@ def one_line_errors(command: Callable[P, R]) -> Callable[P, R]:
         try:
             return command(*args, **kwargs)
         except HilrigError as err:
+            if interrupted_by(err):
+                raise KeyboardInterrupt from err
             print_error(err)
             raise typer.Exit(ERROR_EXIT) from err
         except Exception as err:
+            if interrupted_by(err):
+                raise KeyboardInterrupt from err
             disk = disk_error(err)
             if disk is None:
                 raise

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from hilrig.cli.app import app
-from hilrig.cli.options import SCENARIO_NAMES, SCENARIO_SETTINGS_HELP, LawOption
+from hilrig.cli.options import GRPC_PORT, SCENARIO_NAMES, SCENARIO_SETTINGS_HELP, LawOption
 from hilrig.cli.robot_options import (
     PasswordFile,
     RobotHost,
@@ -134,6 +134,14 @@ def record(
             "refused; it is moved into place, whole, when the session ends)."
         ),
     ] = None,
+    view_port: Annotated[
+        int,
+        typer.Option(
+            min=1,
+            max=65535,
+            help="With --view: the desktop viewer's gRPC port (a viewer already there is used).",
+        ),
+    ] = GRPC_PORT,
 ) -> None:
     """Run the admittance controller in the loop with the rig and record every stream."""
     import signal
@@ -158,7 +166,7 @@ def record(
             f"--duration {duration:g} s is over 24 h ({LONG_SESSION_S:g} s): give --long too"
             " for a session that long"
         )
-    sink = view_sink(view, view_url, view_save)
+    sink = view_sink(view, view_url, view_save, view_port)
     settings = read_rig_file(config) if config is not None else RigFile()
     endpoints = real_endpoints(settings, robot) if rig is RigKind.AUBO else None
     if rig is RigKind.EMULATED and robot is not None:
@@ -231,7 +239,9 @@ def key_values(items: list[str], option: str = "--scenario-set") -> dict[str, ob
     return values
 
 
-def view_sink(view: bool, view_url: str | None, view_save: Path | None) -> Sink | None:
+def view_sink(
+    view: bool, view_url: str | None, view_save: Path | None, view_port: int = GRPC_PORT
+) -> Sink | None:
     """The live view's one destination (None: no live view), checked; raises HilrigError."""
     from hilrig.errors import HilrigError
     from hilrig.viz.live import check_sink
@@ -246,7 +256,7 @@ def view_sink(view: bool, view_url: str | None, view_save: Path | None) -> Sink 
     elif view_save is not None:
         sink = Sink(SinkKind.SAVE, path=view_save)
     elif view:
-        sink = Sink(SinkKind.SPAWN)
+        sink = Sink(SinkKind.SPAWN, port=view_port)
         check_display(sink.port)  # at once, not when the viewer gives up
     else:
         return None

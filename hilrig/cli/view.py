@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -14,6 +16,8 @@ from hilrig.cli.options import DEFAULT_MAX_POINTS, DEFAULT_MAX_POSES, GRPC_PORT,
 
 #: Seconds a viewer may take to receive the whole view before the command gives up.
 FLUSH_S = 120.0
+#: Seconds between two looks at the web server while serving (a Ctrl-C ends the wait at once).
+POLL_S = 0.5
 
 if TYPE_CHECKING:
     from rerun import RecordingStream
@@ -97,7 +101,9 @@ def view_command(
     from hilrig.errors import ViewError
     from hilrig.outputs import new_files
     from hilrig.replay import parse_specs
-    from hilrig.viz import save_rrd, scene_from_session
+
+    with _rerun_logs_off():
+        from hilrig.viz import save_rrd, scene_from_session
 
     sink = _sink(save, overwrite, web, connect, port, web_port)
     console = Console(highlight=False, soft_wrap=True, markup=False)
@@ -128,11 +134,15 @@ def _show(console: Console, sink: Sink, scene: Scene, max_points: int, max_poses
         _print_report(console, report, scene.source)
         if server is not None:
             url = server.url
-            _wait_for_interrupt(lambda: console.print(f"web viewer: {url}  (Ctrl-C to stop)"))
+            _wait_for_interrupt(
+                lambda: console.print(f"web viewer: {url}  (Ctrl-C to stop)"), server.exited
+            )
     finally:
-        rec.disconnect()  # a file is finished (and closed) here
-        if server is not None:
-            server.close()
+        try:
+            rec.disconnect()  # a file is finished (and closed) here; before its server ends
+        finally:
+            if server is not None:
+                server.close()
 
 
 def _sink(
@@ -190,12 +200,30 @@ def _print_report(console: Console, report: ViewReport, source: str) -> None:
         )
 
 
-def _wait_for_interrupt(announce: Callable[[], None]) -> None:
+@contextmanager
+def _rerun_logs_off() -> Iterator[None]:
+    """Rerun's own log lines off in this process (its SDK reads RUST_LOG once, when imported;
+    unless RUST_LOG says otherwise): what goes wrong reaches hilrig as an error, which it says
+    once, where Rerun logged it too (a viewer that went away: two lines, colours and all)."""
+    if "RUST_LOG" in os.environ:
+        yield
+        return
+    os.environ["RUST_LOG"] = "off"
+    try:
+        yield
+    finally:
+        os.environ.pop("RUST_LOG", None)  # the web server it starts keeps its last words
+
+
+def _wait_for_interrupt(announce: Callable[[], None], gone: Callable[[], str] = str) -> None:
     """Block until Ctrl-C or SIGTERM; ``announce()`` once they are caught (a Ctrl-C right after
-    the announcement ends the wait, it does not interrupt what comes before)."""
+    the announcement ends the wait, it does not interrupt what comes before). ViewError when
+    ``gone()`` says why what is served ended first (checked every :data:`POLL_S`)."""
     import signal
     import threading
     from types import FrameType
+
+    from hilrig.errors import ViewError
 
     done = threading.Event()
 
@@ -205,8 +233,9 @@ def _wait_for_interrupt(announce: Callable[[], None]) -> None:
     previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         announce()
-        while not done.wait(0.5):
-            pass
+        while not done.wait(POLL_S):
+            if problem := gone():
+                raise ViewError(problem)
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)

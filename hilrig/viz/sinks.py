@@ -217,21 +217,30 @@ class WebServer:
         command = [str(rerun_binary()), "--serve-web", "--bind", LOCALHOST, "--port", str(port)]
         command += ["--web-viewer-port", str(web_port)]
         self.port, self.web_port = port, web_port
-        try:
+        # its stderr: a pipe nobody reads could fill; closed by close()
+        self._log = tempfile.TemporaryFile(mode="w+")  # noqa: SIM115
+        try:  # a session of its own: a terminal's Ctrl-C reaches hilrig, which stops it in turn
             self.process = subprocess.Popen(
-                command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+                with_parent(command),
+                stdout=subprocess.DEVNULL,
+                stderr=self._log,
+                text=True,
+                start_new_session=True,
             )
         except OSError as err:
+            self._log.close()
             raise ViewError(f"cannot start the Rerun server: {err}") from err
-        self._wait_listening()
+        try:
+            self._wait_listening()
+        except BaseException:  # Ctrl-C too: never left running
+            self.close()
+            raise
 
     def _wait_listening(self, timeout_s: float = 20.0) -> None:
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
-            if self.process.poll() is not None:
-                _, err = self.process.communicate()
-                last = (err or "").strip().splitlines()[-1:] or ["no output"]
-                raise ViewError(f"the Rerun web server exited: {last[0]}")
+            if problem := self.exited():
+                raise ViewError(problem)
             if listening(self.port) and listening(self.web_port):
                 return
             time.sleep(0.05)
@@ -245,7 +254,21 @@ class WebServer:
     def url(self) -> str:
         return web_url(self.web_port, self.port)
 
+    def exited(self) -> str:
+        """Why the server ended ("" while it runs): its exit code and last words."""
+        if self.process.poll() is None:
+            return ""
+        if self._log.closed:
+            return f"the Rerun web server exited with code {self.process.returncode}"
+        self._log.seek(0)
+        last = [line.strip() for line in self._log.read().splitlines() if line.strip()][-1:]
+        return (
+            f"the Rerun web server exited with code {self.process.returncode}: "
+            f"{last[0] if last else 'no output'}"
+        )
+
     def close(self) -> None:
+        """Stop the server (SIGTERM, then SIGKILL after 5 s) and wait for it."""
         if self.process.poll() is None:
             self.process.terminate()
             try:
@@ -253,6 +276,7 @@ class WebServer:
             except subprocess.TimeoutExpired:
                 self.process.kill()
                 self.process.wait()
+        self._log.close()
 
 
 VIEWER_SETTLE_S = 3.0  # a new viewer must still run this long after it listens
@@ -288,6 +312,24 @@ def spawn_viewer(port: int, timeout_s: float = 20.0) -> None:
             if settled is None and listening(port):
                 settled = time.monotonic() + VIEWER_SETTLE_S
             time.sleep(0.05)
+
+
+#: Runs ``argv[2:]`` bound to the process ``argv[1]``: Linux ends it (SIGTERM) when that process
+#: ends, however it ends, and it does not start if that process is gone already.
+WITH_PARENT = (
+    "import ctypes, os, signal, sys\n"
+    "ctypes.CDLL(None).prctl(1, signal.SIGTERM, 0, 0, 0)\n"
+    "if os.getppid() != int(sys.argv[1]): raise SystemExit(1)\n"
+    "os.execv(sys.argv[2], sys.argv[2:])\n"
+)
+
+
+def with_parent(command: list[str]) -> list[str]:
+    """``command`` made to end with this process on Linux (``prctl(PR_SET_PDEATHSIG)`` before
+    it starts, :data:`WITH_PARENT`); as it is elsewhere."""
+    if not sys.platform.startswith("linux"):
+        return command
+    return [sys.executable, "-c", WITH_PARENT, str(os.getpid()), *command]
 
 
 def rerun_binary() -> Path:

@@ -5,6 +5,7 @@ import os
 import re
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -19,6 +20,12 @@ from hilrig.recording import inspect, load, recover
 from hilrig.rig.machine_lock import STOPPED, WAITING, one_session_at_a_time
 
 HILRIG = Path(sys.executable).with_name("hilrig")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
 
 
 def first_line(process: subprocess.Popen[str]) -> str:
@@ -208,9 +215,12 @@ def test_a_bad_input_is_one_line_before_any_file_is_made(
 
 
 def test_the_live_view_without_a_display_is_refused_at_once(tmp_path: Path) -> None:
+    """On a port of its own: a viewer another program runs on Rerun's default port would be
+    used, display or not."""
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    port = ["--view-port", str(free_port())]
     result = subprocess.run(
-        [str(HILRIG), "record", "--subject", "S003", "--out", "s.mcap", "--view"],
+        [str(HILRIG), "record", "--subject", "S003", "--out", "s.mcap", "--view", *port],
         capture_output=True,
         text=True,
         timeout=300,
