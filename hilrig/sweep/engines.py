@@ -6,7 +6,8 @@ tasks finish, in any order. Scheduling, retries and placement are the engine's o
 - ``local``: a ``ProcessPoolExecutor`` of forked workers (this process's imports inherited).
   A worker that dies breaks the pool: the unfinished tasks run again on a new pool, up to
   ``MAX_RETRIES`` broken pools (then the sweep stops with one line, and a rerun completes it).
-  Ctrl-C lets the running tasks finish and drops the rest.
+  Ctrl-C ends the running tasks at once (a task's files are written under hidden temporary
+  names and renamed when whole, so nothing cut short is ever read; a rerun redoes them).
 - ``ray``: each task a Ray remote task (one CPU), retried by Ray up to ``MAX_RETRIES`` times
   when its worker or node dies; at most ``IN_FLIGHT_PER_CPU`` tasks per cluster CPU are
   submitted at once (``ray.wait`` frees a slot), so a huge sweep never floods the scheduler.
@@ -106,6 +107,10 @@ def _pool_results(
                     lost.append(index)
                 else:
                     yield result
+    except KeyboardInterrupt:  # Ctrl-C: the running tasks end too, their files unfinished
+        for worker in list(pool._processes.values()):
+            worker.terminate()
+        raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
     return [tasks[index] for index in sorted(lost)]
@@ -117,8 +122,8 @@ def _start_method() -> str:
 
 
 def _worker_init() -> None:
-    """A pool worker: Ctrl-C is the sweep's to handle (its running tasks finish, the rest
-    are dropped), and on Linux the worker ends with the sweep's process, however that ends."""
+    """A pool worker: Ctrl-C is the sweep's to handle (it ends the workers and drops every
+    task), and on Linux the worker ends with the sweep's process, however that ends."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     libc = linux_libc()
     if libc is not None:

@@ -184,6 +184,40 @@ def test_a_long_command_ends_on_the_first_ctrl_c(
     assert_interrupted(ended)
 
 
+def test_a_sweep_ends_its_running_task_on_ctrl_c(tmp_path: Path) -> None:
+    """A long task (seconds here) is ended, not waited for: nothing of it is written (its
+    files are hidden temporaries until whole), and a rerun would redo it."""
+    sys.path.insert(0, str(Path(__file__).parents[1] / "sweep"))
+    from sweep_helpers import force_table
+
+    from hilrig.sweep import partition_files
+
+    table = force_table(tmp_path / "long.parquet", 3000.0)
+    args = ["sweep", str(table), "-c", "adaptive", "-o", "out", "-j", "1"]
+    out, err = tmp_path / "stdout.txt", tmp_path / "stderr.txt"
+    with out.open("w") as stdout, err.open("w") as stderr:
+        sweep = subprocess.Popen(
+            [str(HILRIG), *args], stdout=stdout, stderr=stderr, cwd=tmp_path, start_new_session=True
+        )
+    try:
+        deadline = time.monotonic() + READY_S
+        while not (workers := psutil.Process(sweep.pid).children()):
+            assert sweep.poll() is None and time.monotonic() < deadline, err.read_text()
+            time.sleep(0.05)
+        time.sleep(0.5)  # the task has started
+        os.killpg(sweep.pid, signal.SIGINT)
+        start = time.monotonic()
+        status = sweep.wait(ENDED_S * 3)
+        seconds = time.monotonic() - start
+    finally:
+        sweep.kill()
+        sweep.wait()
+    took = f"ended {seconds:.2f} s after Ctrl-C; stderr {err.read_text()!r}"
+    assert status == 130 and err.read_text() == "interrupted: stopped by Ctrl-C\n", took
+    assert partition_files(tmp_path / "out") == [], took
+    assert psutil.wait_procs(workers, timeout=FOLLOW_S)[1] == []
+
+
 def test_view_web_ends_when_its_server_dies(tmp_path: Path) -> None:
     """A Rerun server killed under it ends the wait with one line, not a wait for Ctrl-C."""
     args = [str(HILRIG), "view", str(EXAMPLE), "--web", "--port", str(free_port())]

@@ -123,7 +123,7 @@ def test_an_interrupted_command_completes_when_run_again(tmp_path: Path) -> None
         deadline = time.monotonic() + 60
         while not partition_files(out) and time.monotonic() < deadline:
             time.sleep(0.02)
-        process.send_signal(signal.SIGINT)  # Ctrl-C: the running task finishes, the rest dropped
+        process.send_signal(signal.SIGINT)  # Ctrl-C: the running task ends, the rest dropped
         _, stderr = process.communicate(timeout=60)
     finally:
         process.kill()
