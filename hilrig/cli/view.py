@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import os
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -13,6 +11,7 @@ import typer
 from hilrig.cli.app import app
 from hilrig.cli.errors import one_line_errors
 from hilrig.cli.options import DEFAULT_MAX_POINTS, DEFAULT_MAX_POSES, GRPC_PORT, WEB_PORT
+from hilrig.rerun_logs import rerun_logs_off
 
 #: Seconds a viewer may take to receive the whole view before the command gives up.
 FLUSH_S = 120.0
@@ -102,7 +101,7 @@ def view_command(
     from hilrig.outputs import new_files
     from hilrig.replay import parse_specs
 
-    with _rerun_logs_off():
+    with rerun_logs_off():
         from hilrig.viz import save_rrd, scene_from_session
 
     sink = _sink(save, overwrite, web, connect, port, web_port)
@@ -198,21 +197,6 @@ def _print_report(console: Console, report: ViewReport, source: str) -> None:
             f"display decimated: at most {series.points} of {series.samples} samples per "
             "series (min/max per bucket); the file is untouched"
         )
-
-
-@contextmanager
-def _rerun_logs_off() -> Iterator[None]:
-    """Rerun's own log lines off in this process (its SDK reads RUST_LOG once, when imported;
-    unless RUST_LOG says otherwise): what goes wrong reaches hilrig as an error, which it says
-    once, where Rerun logged it too (a viewer that went away: two lines, colours and all)."""
-    if "RUST_LOG" in os.environ:
-        yield
-        return
-    os.environ["RUST_LOG"] = "off"
-    try:
-        yield
-    finally:
-        os.environ.pop("RUST_LOG", None)  # the web server it starts keeps its last words
 
 
 def _wait_for_interrupt(announce: Callable[[], None], gone: Callable[[], str] = str) -> None:

@@ -24,12 +24,12 @@ import dataclasses
 import fcntl
 import os
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass
 from multiprocessing.queues import Queue
 
 from hilrig.errors import ViewError
 from hilrig.outputs import check_new_file, temporary_beside
+from hilrig.rerun_logs import rerun_logs_off
 from hilrig.rig import VIEW_RATE_HZ, ChildProcess, LiveViewPort, ViewBatch, ViewCounts
 from hilrig.rig.child import CONTEXT
 from hilrig.viz.live_feed import FINISH, LiveJob, serve, unwritten
@@ -133,7 +133,7 @@ class LiveView(LiveViewPort):
 
     def start(self, *, timeout_s: float = START_S) -> None:
         """Spawn the viewer feed and wait until its stream is open or it gave up."""
-        with _rerun_quiet():
+        with rerun_logs_off():
             self._child.start(serve, (self._job,))
         try:
             self._child.wait_report("ready", timeout_s)
@@ -197,17 +197,3 @@ def _widen_pipe(batches: Queue[ViewBatch | None]) -> None:
         return
     with contextlib.suppress(OSError, ValueError):
         fcntl.fcntl(writer.fileno(), fcntl.F_SETPIPE_SZ, PIPE_BYTES)
-
-
-@contextlib.contextmanager
-def _rerun_quiet() -> Iterator[None]:
-    """Rerun's own log lines off in a process spawned here (unless RUST_LOG says otherwise):
-    the feed reports a viewer problem itself, once, where Rerun would repeat it."""
-    if "RUST_LOG" in os.environ:
-        yield
-        return
-    os.environ["RUST_LOG"] = "off"
-    try:
-        yield
-    finally:
-        os.environ.pop("RUST_LOG", None)
