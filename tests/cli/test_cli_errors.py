@@ -5,6 +5,7 @@ a warning is one clean line."""
 import os
 import subprocess
 import sys
+import tomllib
 import warnings
 from pathlib import Path
 
@@ -33,10 +34,10 @@ def test_an_expected_error_is_one_line_at_any_terminal_width() -> None:
     )
 
 
-def test_version() -> None:
+def test_version_is_the_projects() -> None:
     result = subprocess.run([str(HILRIG), "--version"], capture_output=True, text=True, timeout=60)
-    assert result.returncode == 0
-    assert result.stdout.startswith("hilrig 0.1.0")
+    project = tomllib.loads((Path(__file__).parents[2] / "pyproject.toml").read_text())["project"]
+    assert (result.returncode, result.stdout) == (0, f"hilrig {project['version']}\n")
 
 
 @pytest.mark.parametrize(
