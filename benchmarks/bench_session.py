@@ -11,7 +11,7 @@ the loop (its devices' I/O and the compiled tick on one thread) here. Five 60 s 
   among them the one that hands a serial port's bytes to its reader) under SCHED_FIFO 1 for the
   session (those alive as its loop starts), as an operator's tuning would put them (tuned's
   scheduler plugin, or ``chrt``): hilrig does not change other threads' priorities itself
-  (docs/rig.md, "Placing the loop"). Skipped where not permitted (root or CAP_SYS_NICE).
+  (docs/rig-timing.md, "Placing the loop"). Skipped where not permitted (root or CAP_SYS_NICE).
 
 The robot is driven as a real AUBO-i5 is: AUBO's client (pyaubo-sdk) in the ARCS link's
 process streams ``servoJoint`` at 200 Hz over JSON-RPC and reads RTDE joint states at 500 Hz.

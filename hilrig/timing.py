@@ -61,7 +61,7 @@ def freeze_heap() -> None:
     (``gc.freeze``): its later passes walk only what was made afterwards. A long-lived process
     calls it when its set-up is done. A full pass over the ~120,000 objects of the emulated rig's
     imports took 25 ms here: in the rig's one thread such a pass stopped both of its streams
-    (docs/rig.md). Freezing is constant time; counting the frozen (``gc.get_freeze_count``)
+    (docs/rig-timing.md). Freezing is constant time; counting the frozen (``gc.get_freeze_count``)
     walks them all, 15 ms over a session's ~210,000 just before its first tick, so it is not
     done here."""
     gc.collect()
@@ -178,7 +178,7 @@ def idle_spinners() -> Iterator[list[int]]:
 
     A CPU that runs a spinner never halts, so a thread woken on it starts at once, on warm
     caches, as under a polling idle driver. Measured by hand on a Firecracker microVM without
-    one (docs/rig.md): 30 s sessions at 1 kHz missed 6.7 / 4.8 % of their deadlines with
+    one (docs/rig-timing.md): 30 s sessions at 1 kHz missed 6.7 / 4.8 % of their deadlines with
     spinners against 31.0 / 36.1 % without, and a bare thread's short work after a wake-up took
     half as long. The spinners die with this process (parent-death signal) and end with the body.
     """

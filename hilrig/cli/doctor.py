@@ -62,7 +62,7 @@ def doctor(
     hypervisor; with --port, the sensor's serial port) each get ok, warn (with what to change)
     or note. Then a bare thread under the loop's settings wakes every 1 ms, and 1 kHz messages
     pass through a pty as the F/T sensor's do: what they lose, a session here loses too
-    (docs/rig.md). Waits while a session runs.
+    (docs/rig-timing.md). Waits while a session runs.
 
     With --robot HOST, first the AUBO controller: reachable, login, interface version, robot
     and safety mode, and the RTDE rate it achieves over 2 s (the arm does not move); exits 1

@@ -106,7 +106,7 @@ def record(
         typer.Option(
             help="Run the loop's thread on this CPU alone, e.g. a core kept free for it "
             "(isolcpus); the rig's and recorder's processes stay where the OS puts them. "
-            "Default: the OS places the thread too (docs/rig.md, 'Placing the loop').",
+            "Default: the OS places the thread too (docs/rig-timing.md, 'Placing the loop').",
         ),
     ] = None,
     out: Annotated[

@@ -4,7 +4,7 @@ Each :class:`Setting` is one fact, a verdict and a one-line note: ``ok``, ``warn
 deadlines; the note says what to change) or ``note`` (worth knowing, nothing to change). The
 files are read under ``root`` (``/`` for this machine; a copy of another machine's /proc and /sys
 reads as that machine, but for what is tried rather than read: real-time scheduling, and whether
-idle CPUs may be held awake). Why each matters, measured: docs/rig.md.
+idle CPUs may be held awake). Why each matters, measured: docs/rig-timing.md.
 """
 
 from __future__ import annotations
@@ -262,7 +262,7 @@ def _kernel_workers(root: Path) -> Setting:
         f"{total} at normal priority",
         "warn",
         "a serial port's bytes are handed on by one of them and can wait behind busy processes "
-        "(docs/rig.md: giving the tty's worker priority)",
+        "(docs/rig-timing.md: giving the tty's worker priority)",
     )
 
 

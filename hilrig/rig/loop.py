@@ -25,7 +25,7 @@ A frame ``NUDGE_NS`` overdue is asked for: the loop wakes and reads every link, 
 A serial port's bytes reach the reader through the kernel's tty buffer, which a kernel worker of
 normal priority hands on; a read of the port makes the kernel hand on what it holds first. That
 worker can wait a whole period behind another thread of normal priority (traced here: the
-kernel's DAMON thread), and the frame would then come with the next one (docs/rig.md).
+kernel's DAMON thread), and the frame would then come with the next one (docs/rig-timing.md).
 """
 
 from __future__ import annotations
@@ -96,7 +96,7 @@ class Watchdog:
 @dataclass(frozen=True)
 class LoopConfig:
     """What the loop runs: rate (Hz), law and parameters of each axis group, staleness limit,
-    and the CPU its thread runs on alone (None: wherever the OS puts it; docs/rig.md)."""
+    and the CPU its thread runs on alone (None: wherever the OS puts it; docs/rig-timing.md)."""
 
     rate_hz: float = 1000.0
     law: Law = Law.ADAPTIVE
