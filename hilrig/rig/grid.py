@@ -6,14 +6,14 @@ frame that comes early (the earliest arrivals show the sensor's schedule), and e
 ``window`` ticks moved later by the smallest lateness of the window (a sensor clock slower
 than ours). A tick's lateness is its start minus its nominal time.
 
-An early frame can be an odd one: on the slow machine, a frame read together with a late one
-came 0.8 ms ahead of its schedule, the next ones on it. The grid, anchored to it, made every
-later tick look 0.8 ms late until its window ended: 539 and 989 ticks in one 60 s session, 2.5 %
-of its ticks, which set its lateness p99 (842 us, against 277 us without them;
-docs/rig-timing.md). So when every one of ``fast_window`` ticks in a row started more than
-``fast_shift_ns`` after the grid, the grid moves later by their smallest lateness at once. A real delay of every frame that
-long (more than twice the loop's nudge, ``NUDGE_NS`` of :mod:`.loop`) would be hidden after
-``fast_window`` ticks, as the slow window hides one after ``window`` ticks.
+An early frame can be an odd one: on the slow machine, a frame read together with a late one came
+0.8 ms ahead of its schedule, the next ones on it. The grid, anchored to it, made every later tick
+look 0.8 ms late until its window ended: 539 and 989 ticks in one 60 s session, 2.5 % of its ticks,
+which set its lateness p99 (842 us, against 277 us without them; docs/rig-timing.md). So when every
+one of ``fast_window`` ticks in a row started more than ``fast_shift_ns`` after the grid, the grid
+moves later by their smallest lateness at once. A real delay of every frame that long (more than
+twice the loop's nudge, ``NUDGE_NS`` of :mod:`.loop`) would be hidden after ``fast_window`` ticks,
+as the slow window hides one after ``window`` ticks.
 """
 
 from __future__ import annotations
