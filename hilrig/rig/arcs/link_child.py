@@ -72,9 +72,10 @@ SAFETY_NAMES = {
     9: "fault",
 }
 STOP_ACC_RAD_S2 = 3.0  # stopJoint's deceleration: the i5's joint acceleration limit
-# A call the client gave up on waits at most this long (the client's own default, 10 ms, failed
-# single servoJoint calls on a loaded machine); so many in a row end the session
-REQUEST_TIMEOUT_MS = 50
+# A servo call the client gave up on waits at most this long (the client's own default, 10 ms,
+# failed single servoJoint calls on a loaded machine); so many in a row end the session. Calls
+# outside servo mode (connect, login, mode changes) wait up to SETUP_TIMEOUT_MS: no tick waits
+REQUEST_TIMEOUT_MS, SETUP_TIMEOUT_MS = 50, 2000
 MAX_FAILED_CALLS = 3
 LINK_PRIORITY = 45  # SCHED_FIFO: below the loop's 50, above the emulated rig's 40
 LOG_LINES = 20  # the client's last log lines kept for an error message
@@ -111,7 +112,7 @@ class _Link:
         self._report_lock = threading.Lock()  # the pipe: this thread and the RTDE callback's
         self.rpc = pyaubo_sdk.RpcClient()
         self.rpc.setLogHandler(self._on_log)
-        self.rpc.setRequestTimeout(REQUEST_TIMEOUT_MS)
+        self.rpc.setRequestTimeout(SETUP_TIMEOUT_MS)
         self.rtde = pyaubo_sdk.RtdeClient()
         self.servoing = False
         self.faulted = ""
@@ -218,6 +219,7 @@ class _Link:
         # that gets no point leaves it)
         self._command[0]["mode"], self._command[0]["source_ns"] = HOLD, 0
         self._command[0]["q"] = self.last_q
+        self.rpc.setRequestTimeout(REQUEST_TIMEOUT_MS)
         self.servoing = True
 
     def servo_off(self) -> None:
@@ -225,6 +227,7 @@ class _Link:
         if self.servoing:
             self.servoing = False
             with contextlib.suppress(Exception):
+                self.rpc.setRequestTimeout(SETUP_TIMEOUT_MS)
                 self.motion.setServoMode(False)
 
     def serve(self) -> None:
