@@ -120,13 +120,14 @@ class ChildProcess:
     def receive(self, kind: str) -> Any:
         """The value of the child's next report, which should be ``kind`` (blocks). Raises
         ``error`` with the child's own message, or with how it ended if it sent none."""
-        try:
-            got, value = self._connection().recv()
-        except (EOFError, OSError):
-            self._join()
-            raise self.error(
-                f"{self.label}: exited with code {self.exitcode} before reporting {kind}"
-            ) from None
+        return self.expect(self.next_report(), kind)
+
+    def expect(self, report: tuple[str, Any], kind: str) -> Any:
+        """The value of ``report`` (from :meth:`next_report`), which should be ``kind``; raises
+        as :meth:`receive` does."""
+        got, value = report
+        if got == "ended":
+            raise self.error(f"{self.label}: exited with code {value} before reporting {kind}")
         if got == "error":
             self._join()  # it exits right after saying so
             raise self.error(f"{self.label}: {value}")

@@ -182,17 +182,11 @@ class RecorderProcess:
 
     def _done(self) -> Any:
         """The value of the recorder's ``done`` report; RecordingError for any other end."""
-        kind, value = self._report or self._child.next_report()
-        if kind == FAILED:
-            self._failure = value
-            raise RecordingError(f"recorder of {self.path}: {value.problem}")
-        if kind == "ended":
-            raise RecordingError(
-                f"recorder of {self.path}: exited with code {value} before reporting done"
-            )
-        if kind != "done":
-            raise RecordingError(f"recorder of {self.path}: {value}")  # its error
-        return value
+        report = self._report or self._child.next_report()
+        if report[0] == FAILED:
+            self._failure = report[1]
+            raise RecordingError(f"recorder of {self.path}: {self._failure.problem}")
+        return self._child.expect(report, "done")
 
     def kill(self) -> None:
         """SIGKILL the recorder and reap it (its file is left as it was: truncated)."""
