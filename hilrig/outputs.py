@@ -51,6 +51,11 @@ DISK_ERRORS: dict[int, tuple[str, str]] = {
 _ERRNO_TEXT = re.compile(r"(?:\berrno|\bos error)\s*(\d+)", re.IGNORECASE)
 
 
+def nearest_existing(path: Path) -> Path:
+    """``path`` if it exists, else the nearest of its parents that does (at worst the root)."""
+    return next(p for p in (path, *path.parents) if p.exists() or p == p.parent)
+
+
 def check_new_file(path: Path, *, overwrite: bool = False, create_folder: bool = False) -> None:
     """Raise :class:`OutputError` unless ``path`` can be written as a new (or, with
     ``overwrite``, replaced regular) file."""
@@ -63,7 +68,7 @@ def check_new_file(path: Path, *, overwrite: bool = False, create_folder: bool =
         if not os.access(folder, os.W_OK | os.X_OK):
             raise OutputError(f"{path}: folder {folder} is not writable")
     else:
-        existing = next(p for p in folder.parents if p.exists())
+        existing = nearest_existing(folder)
         if not existing.is_dir():
             raise OutputError(f"{path}: {existing} is not a folder")
         if create_folder and not os.access(existing, os.W_OK | os.X_OK):

@@ -53,10 +53,10 @@ def check_outputs(paths: Iterable[Path]) -> None:
     import os
 
     from hilrig.errors import OutputError
-    from hilrig.outputs import check_new_file
+    from hilrig.outputs import check_new_file, nearest_existing
 
     for path in paths:
-        above = next(p for p in path.parents if p.exists() or p == p.parent)
+        above = nearest_existing(path.parent)
         if not above.is_dir():
             raise OutputError(f"{path}: {above} is not a folder")
         if not os.access(above, os.W_OK | os.X_OK):

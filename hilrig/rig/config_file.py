@@ -30,7 +30,7 @@ from typing import Any
 
 from hilrig.emulator.rig import RigEndpoints
 from hilrig.errors import HilrigError, OutputError
-from hilrig.outputs import check_new_file
+from hilrig.outputs import check_new_file, nearest_existing
 from hilrig.recording.session_ids import new_session_id
 from hilrig.rig.arcs.settings import RPC_PORT, RTDE_PORT
 
@@ -150,5 +150,5 @@ def check_recording_path(path: Path) -> None:
     try:
         check_new_file(path, create_folder=True)
     except NotADirectoryError:  # a file where one of its folders should be
-        above = next(p for p in path.parents if p.exists() or p == p.parent)
+        above = nearest_existing(path.parent)
         raise OutputError(f"{path}: {above} is not a folder") from None

@@ -9,6 +9,7 @@ import shutil
 from pathlib import Path
 
 from hilrig.errors import DiskError
+from hilrig.outputs import nearest_existing
 
 #: Bytes a session writes per second: 1 kHz F/T, joint-state (500 Hz), tick and servo-call (200
 #: Hz) rows and their events, zstd-compressed; measured on the emulated rig (4 s and 12 s
@@ -32,9 +33,7 @@ def check_free_space(path: Path, duration_s: float | None) -> str:
     nearest existing folder) has less than :data:`MARGIN` times the expected size of a
     ``duration_s`` session (None: until stopped, a minute's); raises DiskError if it cannot
     hold :data:`AT_LEAST_S` (or all of a shorter session)."""
-    folder = path.parent
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
+    folder = nearest_existing(path.parent)
     free = shutil.disk_usage(folder).free
     needed_s = AT_LEAST_S if duration_s is None else min(duration_s, AT_LEAST_S)
     if free < expected_bytes(needed_s):

@@ -8,7 +8,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from hilrig.outputs import DISK_ERRORS, disk_errno
+from hilrig.outputs import DISK_ERRORS, disk_errno, nearest_existing
 
 
 @dataclass(frozen=True)
@@ -42,9 +42,7 @@ def write_failure(err: BaseException, path: Path, kept_until_ns: int) -> WriteFa
 def mount_point(path: Path) -> str:
     """The mount point of the file system that holds ``path`` (or would: its nearest existing
     folder's)."""
-    folder = Path(os.path.abspath(path))
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
+    folder = nearest_existing(Path(os.path.abspath(path)))
     while not os.path.ismount(folder):
         folder = folder.parent
     return str(folder)
